@@ -1,0 +1,49 @@
+# refspatial-gen: `make shards` and `make test` set everything up on first use.
+PY ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed-$(shell cat pyproject.toml | sha1sum | cut -c1-12)
+RECIPE ?= recipes/default.yaml
+OUT ?= out/shards/default
+SCENES ?=
+WORKERS ?= 2
+PYTEST_ARGS ?=
+export MUJOCO_GL ?= egl
+export PYOPENGL_PLATFORM ?= egl
+
+.PHONY: setup shards test test-slow test-all bench preview lint clean
+
+$(STAMP): pyproject.toml
+	@bash scripts/ensure-system-libs.sh
+	@test -x $(BIN)/python || $(PY) -m venv $(VENV)
+	@echo "installing refspatial-gen and its pinned dependencies into $(VENV) (first use only)"
+	@$(BIN)/python -m pip install -q --upgrade pip
+	@$(BIN)/python -m pip install -q -e '.[test]'
+	@rm -f $(VENV)/.installed-*
+	@touch $@
+
+setup: $(STAMP)
+
+shards: setup
+	$(BIN)/refspatial-gen shards --recipe $(RECIPE) --out $(OUT) $(if $(SCENES),--scenes $(SCENES)) --workers $(WORKERS)
+
+test: setup
+	$(BIN)/python -m pytest -q -m "not slow" $(PYTEST_ARGS)
+
+test-slow: setup
+	$(BIN)/python -m pytest -q -m slow $(PYTEST_ARGS)
+
+test-all: setup
+	$(BIN)/python -m pytest -q $(PYTEST_ARGS)
+
+bench: setup
+	$(BIN)/python -m refspatial_gen.bench
+
+preview: setup
+	$(BIN)/refspatial-gen preview $(OUT) --out out/preview
+
+lint: setup
+	$(BIN)/refspatial-gen recipes lint recipes/*.yaml recipes/templates/*.yaml
+
+clean:
+	rm -rf out

@@ -1,0 +1,38 @@
+"""`refspatial-gen` command line. Each command group lives in its own module with `register(subparsers)`."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from refspatial_gen import __version__
+from refspatial_gen.core.errors import RecipeError, RecipeErrors
+
+# Modules that add sub-commands: each defines `register(subparsers) -> None` and sets `func` on its parsers.
+COMMAND_MODULES = [
+    "refspatial_gen.run.commands",
+]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="refspatial-gen", description=__doc__)
+    p.add_argument("--version", action="version", version=f"refspatial-gen {__version__}")
+    sub = p.add_subparsers(dest="command", required=True)
+    for name in COMMAND_MODULES:
+        importlib.import_module(name).register(sub)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        rc = args.func(args)
+    except (RecipeError, RecipeErrors) as e:
+        print(str(e), file=sys.stderr)
+        return 2
+    return int(rc or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

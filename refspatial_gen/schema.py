@@ -1,0 +1,86 @@
+"""A tiny declarative schema for YAML sections: types, ranges, choices, unknown keys -> `file:line` errors.
+
+Every part of the project that reads a recipe section (sources, qa, shards) declares its fields with
+`Field` and calls `check_section`, so all recipe errors look the same and are all found before any work.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from refspatial_gen.core.errors import RecipeError
+from refspatial_gen.yamlpos import line_of
+
+_TYPE_NAMES = {int: "an integer", float: "a number", str: "a string", bool: "true/false", list: "a list", dict: "a mapping"}
+
+
+@dataclass(frozen=True)
+class Field:
+    type: type | tuple[type, ...]
+    required: bool = False
+    default: Any = None
+    choices: tuple | None = None
+    min: float | None = None
+    max: float | None = None
+    check: Callable[[Any], str | None] | None = None  # returns an error message or None
+    doc: str = ""
+
+
+def _type_ok(value: Any, t) -> bool:
+    ts = t if isinstance(t, tuple) else (t,)
+    for ty in ts:
+        if ty is float and isinstance(value, (int, float)) and not isinstance(value, bool):
+            return True
+        if ty is int and isinstance(value, int) and not isinstance(value, bool):
+            return True
+        if ty not in (int, float) and isinstance(value, ty):
+            return True
+    return False
+
+
+def _type_name(t) -> str:
+    ts = t if isinstance(t, tuple) else (t,)
+    return " or ".join(_TYPE_NAMES.get(x, x.__name__) for x in ts)
+
+
+def check_section(data: Any, fields: dict[str, Field], file: str, lines: dict[tuple, int], path: tuple,
+                  errors: list[RecipeError]) -> dict[str, Any]:
+    """Validate one mapping; append every problem to `errors`; return the section with defaults filled in."""
+    where = ".".join(str(p) for p in path) or "recipe"
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        errors.append(RecipeError(file, line_of(lines, path), f"{where} must be a mapping, got {type(data).__name__}"))
+        return {k: f.default for k, f in fields.items()}
+    out: dict[str, Any] = {}
+    for key in data:
+        if key not in fields:
+            known = ", ".join(sorted(fields))
+            errors.append(RecipeError(file, line_of(lines, path + (key,)), f"unknown key {key!r} in {where} (known: {known})"))
+    for key, f in fields.items():
+        if key not in data or data[key] is None:
+            if f.required:
+                errors.append(RecipeError(file, line_of(lines, path), f"{where}: missing required key {key!r}"))
+            out[key] = f.default
+            continue
+        v = data[key]
+        ln = line_of(lines, path + (key,))
+        if not _type_ok(v, f.type):
+            errors.append(RecipeError(file, ln, f"{where}.{key} must be {_type_name(f.type)}, got {type(v).__name__} {v!r}"))
+            out[key] = f.default
+            continue
+        if isinstance(v, int) and not isinstance(v, bool) and f.type is float:
+            v = float(v)
+        if f.choices is not None and v not in f.choices:
+            errors.append(RecipeError(file, ln, f"{where}.{key} must be one of {', '.join(map(str, f.choices))}, got {v!r}"))
+        if f.min is not None and isinstance(v, (int, float)) and v < f.min:
+            errors.append(RecipeError(file, ln, f"{where}.{key} must be >= {f.min}, got {v}"))
+        if f.max is not None and isinstance(v, (int, float)) and v > f.max:
+            errors.append(RecipeError(file, ln, f"{where}.{key} must be <= {f.max}, got {v}"))
+        if f.check is not None:
+            msg = f.check(v)
+            if msg:
+                errors.append(RecipeError(file, ln, f"{where}.{key}: {msg}"))
+        out[key] = v
+    return out
