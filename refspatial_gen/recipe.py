@@ -1,0 +1,145 @@
+"""Recipes: the YAML that fully describes a dataset (sources and their mix, graph and QA options, shards).
+
+Every error in a recipe (and in the template files it points to) is found here, before any work starts,
+and reported as `file:line: message`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from refspatial_gen.core.errors import RecipeError, RecipeErrors
+from refspatial_gen.core.serialize import dumps
+from refspatial_gen.schema import Field, check_section
+from refspatial_gen.sources import get_source, source_names
+from refspatial_gen.yamlpos import line_of, load_yaml
+
+TOP_FIELDS: dict[str, Field] = {
+    "name": Field(str, doc="dataset name"),
+    "description": Field(str, default=""),
+    "seed": Field(int, default=0, min=0, doc="run seed; every unit derives its generator from (seed, unit id)"),
+    "scenes": Field(int, default=100, min=1, doc="units to generate, split across sources by weight"),
+    "sources": Field(list, required=True),
+    "graph": Field(dict, default=None),
+    "qa": Field(dict, default=None),
+    "shards": Field(dict, default=None),
+}
+
+SOURCE_FIELDS: dict[str, Field] = {
+    "kind": Field(str, required=True, doc="registered source name"),
+    "weight": Field(float, default=1.0, min=0.0),
+    "scenes": Field(int, default=None, min=1, doc="fixed unit count for this source (overrides the weight split)"),
+    "input": Field(str, default=None, doc="input folder (scan/image sources), relative to the recipe file"),
+    "config": Field(dict, default=None),
+}
+
+SHARD_FIELDS: dict[str, Field] = {
+    "samples_per_shard": Field(int, default=16, min=1, max=100000),
+    "max_bytes": Field(int, default=512 * 1024 * 1024, min=1024),
+    "image_format": Field(str, default="jpeg", choices=("jpeg", "png")),
+}
+
+
+@dataclass
+class SourceSpec:
+    index: int
+    kind: str
+    weight: float
+    scenes: int | None
+    input: str | None
+    config: dict[str, Any]
+
+
+@dataclass
+class Recipe:
+    path: str
+    name: str
+    seed: int
+    scenes: int
+    sources: list[SourceSpec]
+    graph: dict[str, Any]
+    qa: Any  # compiled QA configuration (refspatial_gen.qa.load_qa_config)
+    shards: dict[str, Any]
+    hash: str  # sha256 over the recipe text and every file it depends on (templates)
+    raw: dict[str, Any] = field(default_factory=dict)
+
+
+def _source_config(kind: str, data: Any, file: str, lines: dict, path: tuple, errors: list[RecipeError]) -> dict:
+    src = get_source(kind)
+    fields = getattr(src, "CONFIG_FIELDS", None)
+    if fields is None:
+        if data is not None and not isinstance(data, dict):
+            errors.append(RecipeError(file, line_of(lines, path), "config must be a mapping"))
+            return {}
+        return dict(data or {})
+    return check_section(data, fields, file, lines, path, errors)
+
+
+def load_recipe(path: str | Path, *, seed: int | None = None, scenes: int | None = None,
+                input_path: str | None = None) -> Recipe:
+    """Load, validate and compile a recipe. Raises RecipeErrors listing every problem found."""
+    file = str(path)
+    data, lines = load_yaml(path)
+    if data is None:
+        raise RecipeError(file, 1, "empty recipe")
+    errors: list[RecipeError] = []
+    top = check_section(data, TOP_FIELDS, file, lines, (), errors)
+    specs: list[SourceSpec] = []
+    for i, s in enumerate(top["sources"] or []):
+        sp = check_section(s, SOURCE_FIELDS, file, lines, ("sources", i), errors)
+        kind = sp["kind"]
+        if kind is None:
+            continue
+        if kind not in source_names():
+            errors.append(RecipeError(file, line_of(lines, ("sources", i, "kind")),
+                                      f"unknown source kind {kind!r} (known: {', '.join(source_names())})"))
+            continue
+        cfg = _source_config(kind, sp["config"], file, lines, ("sources", i, "config"), errors)
+        inp = input_path if input_path is not None else sp["input"]
+        if inp is not None and input_path is None:
+            inp = str((Path(file).parent / inp).resolve())
+        specs.append(SourceSpec(i, kind, sp["weight"], sp["scenes"], inp, cfg))
+    if top["sources"] is not None and not top["sources"]:
+        errors.append(RecipeError(file, line_of(lines, ("sources",)), "sources must list at least one source"))
+    shards = check_section(top["shards"], SHARD_FIELDS, file, lines, ("shards",), errors)
+    graph_cfg = dict(top["graph"] or {})
+    qa_cfg = None
+    deps: list[Path] = []
+    if not errors:
+        qa_mod = importlib.import_module("refspatial_gen.qa")
+        try:
+            qa_cfg = qa_mod.load_qa_config(top["qa"] or {}, file, lines)
+        except RecipeError as e:
+            errors.append(e)
+        except RecipeErrors as e:
+            errors.extend(e.errors)
+        else:
+            deps = [Path(p) for p in getattr(qa_cfg, "source_files", [])]
+    if errors:
+        raise RecipeErrors(errors)
+    h = hashlib.sha256(Path(file).read_bytes())
+    for d in sorted(set(deps)):
+        h.update(d.name.encode() + b"\0" + d.read_bytes())
+    return Recipe(
+        path=file, name=top["name"] or Path(file).stem, seed=top["seed"] if seed is None else seed,
+        scenes=top["scenes"] if scenes is None else scenes, sources=specs, graph=graph_cfg, qa=qa_cfg,
+        shards=shards, hash=h.hexdigest(), raw=data,
+    )
+
+
+def recipe_fingerprint(recipe: Recipe) -> dict[str, Any]:
+    """What identifies a run's output (stored in index.json): recipe hash, seed, scenes, code version."""
+    from refspatial_gen import __version__
+
+    return {"recipe": Path(recipe.path).name, "recipe_hash": recipe.hash, "seed": recipe.seed,
+            "scenes": recipe.scenes, "code_version": __version__,
+            "sources": [{"kind": s.kind, "weight": s.weight, "input": None if s.input is None else Path(s.input).name}
+                        for s in recipe.sources]}
+
+
+def fingerprint_bytes(recipe: Recipe) -> bytes:
+    return dumps(recipe_fingerprint(recipe))

@@ -1,0 +1,100 @@
+"""CLI: `shards` (generate, resume, salvage) and `stats`."""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+from pathlib import Path
+
+
+def register(sub) -> None:
+    p = sub.add_parser("shards", help="generate a dataset from a recipe (resumes an interrupted run)",
+                       description="Generate shards from a recipe. Running it again on the same --out resumes: "
+                                   "finished shards are verified by hash and kept, unfinished ones are redone. "
+                                   "`shards salvage FILE` recovers the complete samples of an unfinished shard.")
+    p.add_argument("action", nargs="?", choices=["run", "salvage"], default="run")
+    p.add_argument("paths", nargs="*", help="with `salvage`: unfinished shard files (*.partial)")
+    p.add_argument("--recipe", default="recipes/default.yaml")
+    p.add_argument("--out", default=None, help="output folder (default out/shards/<recipe name>)")
+    p.add_argument("--scenes", type=int, default=None, help="override the recipe's scene count")
+    p.add_argument("--seed", type=int, default=None, help="override the recipe's seed")
+    p.add_argument("--input", default=None, help="input folder for scan/image sources")
+    p.add_argument("--workers", type=int, default=max(1, (os.cpu_count() or 1)), help="worker processes")
+    p.add_argument("--executor", choices=["local", "ray"], default="local")
+    p.add_argument("--ray-address", default=None, help="Ray cluster address (default: start a local instance)")
+    p.add_argument("--fresh", action="store_true", help="discard a previous run's output in --out")
+    p.add_argument("--strict", action="store_true", help="stop on an internal error instead of counting it")
+    p.add_argument("--no-report", action="store_true", help="skip the HTML run report")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_shards)
+
+    s = sub.add_parser("stats", help="dataset statistics of a shard folder")
+    s.add_argument("dir")
+    s.add_argument("--json", action="store_true")
+    s.set_defaults(func=cmd_stats)
+
+
+def cmd_shards(args) -> int:
+    if args.action == "salvage":
+        return _salvage(args.paths)
+    from refspatial_gen.recipe import load_recipe
+    from refspatial_gen.run.executor import RecipeRef, run_plan
+
+    recipe = load_recipe(args.recipe, seed=args.seed, scenes=args.scenes, input_path=args.input)
+    out = Path(args.out or f"out/shards/{recipe.name}")
+    ref = RecipeRef(str(Path(args.recipe).resolve()), args.seed, args.scenes,
+                    None if args.input is None else str(Path(args.input).resolve()))
+    result = run_plan(recipe, ref, out, workers=args.workers, executor=args.executor, ray_address=args.ray_address,
+                      strict=args.strict, fresh=args.fresh, progress=not args.quiet)
+    st, log = result["stats"], result["run_log"]
+    if not args.no_report:
+        from refspatial_gen.run.report import write_report
+
+        report = write_report(out, st, log, {k: v for k, v in result["index"].items() if k not in ("shards", "stats")})
+        print(f"report: {report}")
+    dropped = sum(st["dropped"].values())
+    print(f"{out}: {st['samples']} samples, {st['qa_pairs']} QA pairs in {len(result['index']['shards'])} shards; "
+          f"{dropped} of {st['units']} units dropped {st['dropped'] or ''}; "
+          f"{log['wall_seconds']:.1f} s, {log['qa_per_s']:.1f} QA/s")
+    if log["errors"]:
+        print(f"warning: {len(log['errors'])} units failed with internal errors; tracebacks in {out / 'run_log.json'}",
+              file=sys.stderr)
+    return 0
+
+
+def _salvage(paths: list[str]) -> int:
+    from refspatial_gen.shards.integrity import salvage_shard
+
+    if not paths:
+        print("shards salvage: give the unfinished shard files", file=sys.stderr)
+        return 2
+    rc = 0
+    for p in paths:
+        try:
+            info = salvage_shard(Path(p))
+        except (OSError, ValueError) as e:
+            print(f"{p}: cannot salvage: {e}", file=sys.stderr)
+            rc = 1
+            continue
+        print(f"{p}: {json.dumps(info, sort_keys=True)}")
+    return rc
+
+
+def cmd_stats(args) -> int:
+    from refspatial_gen.shards.index import read_index
+
+    index = read_index(Path(args.dir))
+    st = index["stats"]
+    out = {k: st[k] for k in ("samples", "qa_pairs", "by_relation", "by_family", "by_steps", "by_source", "dropped")}
+    out["units"] = st.get("units", 0)
+    out["shards"] = len(index["shards"])
+    if args.json:
+        print(json.dumps(out, indent=2, sort_keys=True))
+        return 0
+    print(f"{args.dir}: {out['samples']} samples, {out['qa_pairs']} QA pairs, {out['shards']} shards, "
+          f"{sum(out['dropped'].values())} of {out['units']} units dropped")
+    for key in ("by_family", "by_steps", "by_source", "by_relation", "dropped"):
+        items = sorted(out[key].items(), key=lambda kv: (-kv[1], kv[0]))
+        print(f"  {key}: " + ", ".join(f"{k}={v}" for k, v in items))
+    return 0

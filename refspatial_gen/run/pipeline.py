@@ -1,0 +1,49 @@
+"""One work unit through every stage: source -> frames -> scene graphs -> QA pairs -> Sample."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+from refspatial_gen.core.errors import DropUnit
+from refspatial_gen.core.model import Sample
+from refspatial_gen.recipe import Recipe
+from refspatial_gen.run.plan import Unit, unit_rng
+from refspatial_gen.sources import get_source
+
+
+@dataclass
+class StageTimer:
+    seconds: dict[str, float] = field(default_factory=lambda: {"load": 0.0, "graph": 0.0, "qa": 0.0, "write": 0.0})
+
+    def add(self, stage: str, t0: float) -> float:
+        t = time.perf_counter()
+        self.seconds[stage] = self.seconds.get(stage, 0.0) + (t - t0)
+        return t
+
+
+def make_sample(recipe: Recipe, unit: Unit, timer: StageTimer) -> Sample:
+    """Build the unit's sample. Raises DropUnit (with a reason) when the unit yields nothing usable."""
+    from refspatial_gen.graph import build_graph
+    from refspatial_gen.qa import generate_qa
+
+    spec = recipe.sources[[s.index for s in recipe.sources].index(unit.source_index)]
+    rng = unit_rng(recipe.seed, unit.uid)
+    t = time.perf_counter()
+    frames = get_source(unit.kind).load(unit.key, rng, spec.config)
+    if not frames:
+        raise DropUnit("no_frames", unit.key)
+    for f in frames:
+        try:
+            f.validate()
+        except ValueError as e:
+            raise DropUnit("invalid_frame", f"{f.frame_id}: {e}") from e
+    t = timer.add("load", t)
+    graphs = [build_graph(f, recipe.graph) for f in frames]
+    t = timer.add("graph", t)
+    qa = generate_qa(frames, graphs, rng, recipe.qa)
+    timer.add("qa", t)
+    if not qa:
+        raise DropUnit("no_questions", f"{unit.key}: no question passed the checks")
+    return Sample(sample_id=unit.uid, frames=frames, graphs=graphs, qa=qa, unit_key=unit.key,
+                  meta={"source": unit.kind})
