@@ -48,6 +48,7 @@ def check_section(data: Any, fields: dict[str, Field], file: str, lines: dict[tu
                   errors: list[RecipeError]) -> dict[str, Any]:
     """Validate one mapping; append every problem to `errors`; return the section with defaults filled in."""
     where = ".".join(str(p) for p in path) or "recipe"
+    prefix = f"{where}." if path else ""
     if data is None:
         data = {}
     if not isinstance(data, dict):
@@ -67,20 +68,20 @@ def check_section(data: Any, fields: dict[str, Field], file: str, lines: dict[tu
         v = data[key]
         ln = line_of(lines, path + (key,))
         if not _type_ok(v, f.type):
-            errors.append(RecipeError(file, ln, f"{where}.{key} must be {_type_name(f.type)}, got {type(v).__name__} {v!r}"))
+            errors.append(RecipeError(file, ln, f"{prefix}{key} must be {_type_name(f.type)}, got {type(v).__name__} {v!r}"))
             out[key] = f.default
             continue
         if isinstance(v, int) and not isinstance(v, bool) and f.type is float:
             v = float(v)
         if f.choices is not None and v not in f.choices:
-            errors.append(RecipeError(file, ln, f"{where}.{key} must be one of {', '.join(map(str, f.choices))}, got {v!r}"))
+            errors.append(RecipeError(file, ln, f"{prefix}{key} must be one of {', '.join(map(str, f.choices))}, got {v!r}"))
         if f.min is not None and isinstance(v, (int, float)) and v < f.min:
-            errors.append(RecipeError(file, ln, f"{where}.{key} must be >= {f.min}, got {v}"))
+            errors.append(RecipeError(file, ln, f"{prefix}{key} must be >= {f.min}, got {v}"))
         if f.max is not None and isinstance(v, (int, float)) and v > f.max:
-            errors.append(RecipeError(file, ln, f"{where}.{key} must be <= {f.max}, got {v}"))
+            errors.append(RecipeError(file, ln, f"{prefix}{key} must be <= {f.max}, got {v}"))
         if f.check is not None:
             msg = f.check(v)
             if msg:
-                errors.append(RecipeError(file, ln, f"{where}.{key}: {msg}"))
+                errors.append(RecipeError(file, ln, f"{prefix}{key}: {msg}"))
         out[key] = v
     return out

@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import os
 import resource
+import signal
 import sys
 import time
 import traceback
@@ -31,6 +32,22 @@ from refspatial_gen.run.pipeline import StageTimer, make_sample
 from refspatial_gen.run.plan import Group, Unit, plan_groups, plan_units
 
 PARTS = "_parts"
+FAULT_ENV = "REFSPATIAL_FAULT"  # test hook: "unit:N" | "index" — SIGKILL this process at that point
+_units_done = 0
+
+
+def _fault(point: str) -> None:
+    """Crash-test hook: kill the process with SIGKILL at a named point when REFSPATIAL_FAULT asks for it."""
+    global _units_done
+    spec = os.environ.get(FAULT_ENV)
+    if not spec:
+        return
+    if point == "unit":
+        _units_done += 1
+        if spec == f"unit:{_units_done}":
+            os.kill(os.getpid(), signal.SIGKILL)
+    elif spec == point:
+        os.kill(os.getpid(), signal.SIGKILL)
 
 
 @dataclass(frozen=True)
@@ -94,6 +111,7 @@ def run_group(task: GroupTask) -> dict[str, Any]:
         writer.write(sample)
         timer.add("write", t)
         S.add_sample(stats, sample, kind)
+        _fault("unit")
     t = time.perf_counter()
     infos = [_info_dict(i) for i in writer.finish()]
     timer.add("write", t)
@@ -182,6 +200,9 @@ def run_plan(recipe: Recipe, ref: RecipeRef, out_dir: Path, workers: int = 1, ex
         total = S.merge(total, records[idx]["stats"])
         for s in records[idx]["shards"]:
             shards.append({**s, "group": idx})
+    if os.environ.get(FAULT_ENV) == "index":  # simulate dying half-way through writing the index
+        (out_dir / "index.json.tmp").write_bytes(b'{"shards": [')
+        _fault("index")
     index = write_index(out_dir, shards, {**fingerprint, "stats": total})
     wall = time.time() - t_start
     stage = {k: round(sum(r["stage_seconds"].get(k, 0.0) for r in results), 3) for k in ("load", "graph", "qa", "write")}
