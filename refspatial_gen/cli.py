@@ -11,6 +11,7 @@ from refspatial_gen.core.errors import RecipeError, RecipeErrors
 
 # Modules that add sub-commands: each defines `register(subparsers) -> None` and sets `func` on its parsers.
 COMMAND_MODULES = [
+    "refspatial_gen.run.preview_commands",
     "refspatial_gen.run.commands",
 ]
 

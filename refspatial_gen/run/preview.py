@@ -1,0 +1,342 @@
+"""Preview gallery: PNG overlays of a seeded sample of QA pairs from a shard folder, plus `index.html`.
+
+Why: a data engineer must be able to *see* that answers land on the right object, that boxes and
+free-space regions sit where the geometry says, and that questions and traces read well, before a
+training job burns GPU hours on them. Each overlay draws the answer points, the target objects' 2D
+boxes and projected 3D boxes, the frame's free-space regions (the answer's region highlighted), the
+trace's Position key steps, and the question, answer, trace and checks as text under the image.
+
+The choice of QA pairs is a seeded reservoir sample over the stream (shards in name order, samples
+in stored order, QA pairs in order): same folder and seed -> same selection and same PNG bytes, with
+at most `n` samples held in memory however large the folder is.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Iterable, Iterator
+
+import numpy as np
+
+from refspatial_gen.core.mask import denormalise_point
+from refspatial_gen.core.model import Frame, FreeSpaceRegion, QAPair, Sample, SceneGraph
+from refspatial_gen.core.serialize import encode_png
+from refspatial_gen.run import draw
+
+SHARD_SUFFIX = ".mcap"
+
+
+# ---------------------------------------------------------------------------------------------- answers
+def answer_points(struct: dict[str, Any]) -> list[tuple[float, float]]:
+    """Normalised (x, y) answer points of an `answer_struct` (`points` list and/or a single `point`)."""
+    pts = list(struct.get("points") or [])
+    if struct.get("point") is not None:
+        pts.append(struct["point"])
+    out = []
+    for p in pts:
+        if isinstance(p, (list, tuple)) and len(p) == 2:
+            out.append((float(p[0]), float(p[1])))
+    return out
+
+
+def _answer_frame(sample: Sample, qa: QAPair) -> Frame:
+    """The frame the answer's points refer to: `answer_struct.frame_id`, else the question's first frame."""
+    want = qa.answer_struct.get("frame_id") or (qa.frame_ids[0] if qa.frame_ids else None)
+    for f in sample.frames:
+        if want is None or f.frame_id == want:
+            return f
+    raise KeyError(f"sample {sample.sample_id}: QA {qa.qa_id} refers to frame {want!r}, not in the sample")
+
+
+def _graph_for(sample: Sample, frame: Frame) -> SceneGraph | None:
+    for g in sample.graphs:
+        if g.frame_id == frame.frame_id:
+            return g
+    return None
+
+
+def _region_of_answer(struct: dict[str, Any], graph: SceneGraph | None) -> FreeSpaceRegion | None:
+    """The free-space region a placement answer refers to: stored in the struct, or the graph's region
+    whose representative point is the answer point."""
+    reg = struct.get("region")
+    if isinstance(reg, dict) and "polygon_xy" in reg and "z" in reg:
+        return FreeSpaceRegion.from_json({"surface_id": "", "kind": "", "anchors": [], "area": 0.0,
+                                          "point_world": [0, 0, 0], "point": [0, 0], **reg})
+    if graph is None:
+        return None
+    pts = answer_points(struct)
+    for r in graph.free_space:
+        if any(abs(r.point[0] - x) < 5e-4 and abs(r.point[1] - y) < 5e-4 for x, y in pts):
+            return r
+    return None
+
+
+def _inside_polygon(uv: np.ndarray, x: float, y: float) -> bool:
+    import cv2
+
+    return cv2.pointPolygonTest(np.asarray(uv, np.float32).reshape(-1, 1, 2), (float(x), float(y)), False) >= 0
+
+
+def point_checks(sample: Sample, qa: QAPair) -> list[tuple[str, bool]]:
+    """Human-readable checks of each answer point against the scene, re-done from the stored data.
+
+    A point is on target when the pixel it denormalises to lies in a target's visible mask (the same
+    rule the generators follow); a placement point when it lies in its free-space region's projection.
+    Returns (text, passed) per answer point.
+    """
+    frame = _answer_frame(sample, qa)
+    W, H = frame.camera.width, frame.camera.height
+    masks = []
+    for oid in qa.targets:
+        try:
+            obj = frame.object(int(oid))
+        except KeyError:
+            continue
+        if obj.mask is not None:
+            masks.append((oid, obj.mask.decode()))
+    region = _region_of_answer(qa.answer_struct, _graph_for(sample, frame))
+    region_uv = None if region is None else draw.project_polygon(frame.camera, region.polygon_xy, region.z)
+    out = []
+    for k, (x, y) in enumerate(answer_points(qa.answer_struct), 1):
+        px, py = denormalise_point(x, y, W, H)
+        parts, ok = [f"point {k} ({x:.3f}, {y:.3f}) -> pixel ({px}, {py})"], True
+        if masks:
+            hit = [oid for oid, m in masks if m[py, px]]
+            parts.append(f"in target mask #{hit[0]}: yes" if hit else "in a target mask: NO")
+            ok = ok and bool(hit)
+        if region_uv is not None:
+            inside = _inside_polygon(region_uv, px + 0.5, py + 0.5)
+            parts.append("in free-space region: " + ("yes" if inside else "NO"))
+            ok = ok and inside
+        out.append(("; ".join(parts), ok))
+    return out
+
+
+# ---------------------------------------------------------------------------------------------- render
+def _draw_frame(sample: Sample, qa: QAPair, frame: Frame, answer_frame: bool) -> tuple[np.ndarray, set[str]]:
+    """One frame with its overlays; returns the image and the legend keys used."""
+    ov = draw.Overlay.from_rgb(frame.rgb)
+    cam = frame.camera
+    W, H = cam.width, cam.height
+    used: set[str] = set()
+    graph = _graph_for(sample, frame)
+    region = _region_of_answer(qa.answer_struct, graph) if answer_frame else None
+    for r in (graph.free_space if graph is not None else []):
+        uv = draw.project_polygon(cam, r.polygon_xy, r.z)
+        if uv is not None and (region is None or r is not region):
+            ov.polygon(uv, draw.FREE_SPACE, fill_alpha=45, width=1)
+            used.add("free")
+    if region is not None:
+        uv = draw.project_polygon(cam, region.polygon_xy, region.z)
+        if uv is not None:
+            ov.polygon(uv, draw.ANSWER_REGION, fill_alpha=90, width=3)
+            used.add("region")
+    if answer_frame:
+        for oid in qa.targets:
+            try:
+                obj = frame.object(int(oid))
+            except KeyError:
+                continue
+            ov.segments(draw.project_box_edges(cam, obj.box), draw.TARGET_3D, width=2)
+            used.add("box3d")
+            if obj.bbox2d is not None:
+                ov.rect(obj.bbox2d, draw.TARGET_2D, width=2, label=f"#{obj.id} {obj.category}")
+                used.add("box2d")
+        for opt_i, opt in enumerate(qa.answer_struct.get("options") or []):
+            if not isinstance(opt, dict):
+                continue
+            name = str(opt.get("label") or opt.get("letter") or chr(ord("A") + opt_i))
+            if isinstance(opt.get("point"), (list, tuple)) and len(opt["point"]) == 2:
+                ov.point(float(opt["point"][0]) * W, float(opt["point"][1]) * H, draw.OPTION, f"({name})", radius=5)
+                used.add("option")
+            box = opt.get("bbox2d") or opt.get("box")
+            if isinstance(box, (list, tuple)) and len(box) == 4:
+                ov.rect(box, draw.OPTION, width=2, label=f"({name})")
+                used.add("option")
+        for k, ks in enumerate(qa.key_steps, 1):
+            if ks.type == "Position" and len(ks.value) == 2:
+                ov.point(ks.value[0] * W, ks.value[1] * H, draw.KEY_STEP, f"s{k}", radius=9, hollow=True)
+                used.add("step")
+        for k, (x, y) in enumerate(answer_points(qa.answer_struct), 1):
+            ov.point(x * W, y * H, draw.ANSWER, f"A{k}" if len(answer_points(qa.answer_struct)) > 1 else "A")
+            used.add("answer")
+    return ov.rgb(), used
+
+
+_LEGEND = [("answer", draw.ANSWER, "answer point"), ("region", draw.ANSWER_REGION, "answer region"),
+           ("free", draw.FREE_SPACE, "free space"), ("box2d", draw.TARGET_2D, "target 2D box"),
+           ("box3d", draw.TARGET_3D, "target 3D box"), ("step", draw.KEY_STEP, "trace position"),
+           ("option", draw.OPTION, "choice option")]
+
+
+def _struct_text(struct: dict[str, Any]) -> str:
+    s = json.dumps(struct, sort_keys=True, ensure_ascii=False)
+    return s if len(s) <= 400 else s[:397] + "..."
+
+
+def render_preview(sample: Sample, qa_index: int) -> np.ndarray:
+    """The overlay image (uint8 RGB) for `sample.qa[qa_index]`: frames side by side, text underneath."""
+    qa = sample.qa[qa_index]
+    ans_frame = _answer_frame(sample, qa)
+    frames = [f for f in sample.frames if not qa.frame_ids or f.frame_id in qa.frame_ids] or [ans_frame]
+    tiles, used = [], set()
+    for f in frames:
+        img, u = _draw_frame(sample, qa, f, f is ans_frame)
+        tiles.append(img)
+        used |= u
+    top = draw.hstack(tiles)
+    width = max(top.shape[1], 640)
+    rels = ", ".join(qa.relations) or "-"
+    blocks: list[tuple[str, str, draw.RGB]] = [
+        (f"{qa.family} · {qa.template} · {qa.steps} step{'s' if qa.steps != 1 else ''} · relations: {rels}",
+         "bold", (150, 200, 255)),
+        (f"Q: {qa.question}", "regular", (240, 240, 240)),
+        (f"A: {qa.answer}", "bold", (255, 140, 140)),
+        (f"answer_struct: {_struct_text(qa.answer_struct)}", "mono", (180, 180, 180)),
+    ]
+    if qa.trace:
+        blocks.append((f"trace:\n{qa.trace}", "mono", (255, 200, 120)))
+    if qa.key_steps:
+        ks = "\n".join(f"s{k} [{s.type}] {s.phrase}: {', '.join(f'{v:.3f}' for v in s.value)}"
+                       for k, s in enumerate(qa.key_steps, 1))
+        blocks.append((f"key steps:\n{ks}", "mono", (255, 200, 120)))
+    checks = point_checks(sample, qa)
+    if checks:
+        bad = not all(ok for _, ok in checks)
+        blocks.append(("preview check:\n" + "\n".join(t for t, _ in checks), "mono",
+                       (255, 90, 90) if bad else (140, 230, 140)))
+    if qa.checks:
+        blocks.append(("generator checks passed: " + ", ".join(qa.checks), "regular", (170, 170, 170)))
+    W, H = qa.image_size
+    blocks.append((f"sample {sample.sample_id} · qa {qa.qa_id} · frames {', '.join(f.frame_id for f in frames)}"
+                   f" · image {W}x{H}", "regular", (140, 140, 140)))
+    leg = draw.legend([(c, label) for key, c, label in _LEGEND if key in used], width) if used else None
+    panel = draw.text_panel(blocks, width)
+    out = draw.vstack(top, leg) if leg is not None else top
+    return draw.vstack(out, panel)
+
+
+# ---------------------------------------------------------------------------------------------- sampling
+@dataclass(frozen=True)
+class Pick:
+    """One chosen QA pair: its position in the stream and where it came from."""
+
+    order: int  # index of the QA pair in the stream (shards by name, samples in order, QA in order)
+    source: str  # shard file name (or "" for in-memory samples)
+    sample_id: str
+    qa_index: int
+    qa_id: str
+
+
+def reservoir_pick(stream: Iterable[tuple[str, Sample]], n: int, seed: int) -> list[tuple[Pick, Sample]]:
+    """Algorithm R over every QA pair of the stream with a seeded Generator; sorted by stream order.
+
+    Holds at most `n` samples (those with a chosen QA pair), so memory does not grow with the folder.
+    """
+    if n <= 0:
+        return []
+    rng = np.random.default_rng(seed)
+    chosen: list[tuple[Pick, Sample]] = []
+    t = 0
+    for source, sample in stream:
+        for qi, qa in enumerate(sample.qa):
+            pick = Pick(t, source, sample.sample_id, qi, qa.qa_id)
+            if len(chosen) < n:
+                chosen.append((pick, sample))
+            else:
+                j = int(rng.integers(0, t + 1))
+                if j < n:
+                    chosen[j] = (pick, sample)
+            t += 1
+    return sorted(chosen, key=lambda ps: ps[0].order)
+
+
+def _safe(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", name)[:80]
+
+
+def write_gallery(stream: Iterable[tuple[str, Sample]], out: Path, n: int = 24, seed: int = 0,
+                  title: str = "refspatial-gen preview") -> Path:
+    """Render a seeded sample of `n` QA pairs from `(source_name, Sample)` pairs into `out`; returns index.html."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    picks = reservoir_pick(stream, n, seed)
+    cards, listing = [], []
+    for k, (pick, sample) in enumerate(picks):
+        qa = sample.qa[pick.qa_index]
+        name = f"qa_{k:03d}_{_safe(pick.qa_id)}.png"
+        (out / name).write_bytes(encode_png(render_preview(sample, pick.qa_index)))
+        listing.append({"file": name, "order": pick.order, "source": pick.source, "sample_id": pick.sample_id,
+                        "qa_index": pick.qa_index, "qa_id": pick.qa_id, "family": qa.family,
+                        "steps": qa.steps, "checks": [{"text": t, "ok": ok} for t, ok in point_checks(sample, qa)]})
+        cards.append(_card(name, pick, qa, listing[-1]["checks"]))
+    (out / "preview.json").write_text(json.dumps({"seed": seed, "n": n, "picked": listing}, indent=1,
+                                                 sort_keys=True, ensure_ascii=False) + "\n", encoding="utf-8")
+    index = out / "index.html"
+    index.write_text(_page(title, seed, cards), encoding="utf-8")
+    return index
+
+
+def _card(name: str, pick: Pick, qa: QAPair, checks: list[dict]) -> str:
+    e = html.escape
+    bad = not all(c["ok"] for c in checks)
+    flag = '<span class="bad">point check failed</span>' if bad else ""
+    src = f" · {e(pick.source)}" if pick.source else ""
+    return (f'<figure class="card"><a href="{e(name)}"><img src="{e(name)}" loading="lazy" alt="{e(qa.qa_id)}"></a>'
+            f'<figcaption><div class="meta">{e(qa.family)} · {qa.steps} step{"s" if qa.steps != 1 else ""}'
+            f' · {e(", ".join(qa.relations) or "-")} {flag}</div>'
+            f'<div class="q">{e(qa.question)}</div><div class="a">{e(qa.answer)}</div>'
+            f'<div class="id">{e(pick.sample_id)} · {e(pick.qa_id)}{src}</div></figcaption></figure>')
+
+
+_CSS = """
+body{font-family:system-ui,-apple-system,"DejaVu Sans",sans-serif;margin:0;background:#f4f5f7;color:#1d1f23}
+header{background:#1d1f23;color:#fff;padding:14px 24px}header h1{margin:0;font-size:20px}
+header p{margin:4px 0 0;color:#bbb;font-size:13px}
+main{display:grid;grid-template-columns:repeat(auto-fill,minmax(380px,1fr));gap:16px;padding:16px 24px}
+.card{margin:0;background:#fff;border-radius:6px;box-shadow:0 1px 3px rgba(0,0,0,.15);overflow:hidden}
+.card img{display:block;width:100%;height:auto}.card figcaption{padding:8px 12px 12px;font-size:13px}
+.meta{color:#555;font-size:12px}.q{margin-top:6px}.a{margin-top:4px;font-weight:600;color:#b3261e}
+.id{margin-top:6px;color:#888;font-size:11px;word-break:break-all}.bad{color:#fff;background:#b3261e;padding:0 4px}
+"""
+
+
+def _page(title: str, seed: int, cards: list[str]) -> str:
+    e = html.escape
+    body = "\n".join(cards) if cards else "<p>No QA pairs found.</p>"
+    return (f'<!doctype html>\n<html lang="en"><head><meta charset="utf-8"><title>{e(title)}</title>'
+            f"<style>{_CSS}</style></head><body>\n<header><h1>{e(title)}</h1>"
+            f"<p>{len(cards)} QA pairs, seeded sample (seed {seed}). Click an image for full size.</p></header>\n"
+            f"<main>\n{body}\n</main></body></html>\n")
+
+
+# ---------------------------------------------------------------------------------------------- shards
+def shard_paths(folder: Path) -> list[Path]:
+    """Complete shard files under `folder`, in a stable order (relative path)."""
+    folder = Path(folder)
+    if folder.is_file():
+        return [folder]
+    return sorted((p for p in folder.rglob(f"*{SHARD_SUFFIX}") if p.is_file()),
+                  key=lambda p: p.relative_to(folder).as_posix())
+
+
+def iter_shard_samples(folder: Path) -> Iterator[tuple[str, Sample]]:
+    """(shard name, Sample) over every shard under `folder`, via the shard reader."""
+    from refspatial_gen.shards.reader import read_samples
+
+    folder = Path(folder)
+    for p in shard_paths(folder):
+        name = p.name if folder.is_file() else p.relative_to(folder).as_posix()
+        for s in read_samples(p):
+            yield name, s
+
+
+def preview_dir(folder: Path, out: Path, n: int = 24, seed: int = 0) -> Path:
+    """`refspatial-gen preview`: gallery of `n` seeded QA pairs from the shards under `folder`."""
+    if not shard_paths(folder):
+        raise FileNotFoundError(f"no {SHARD_SUFFIX} shards under {folder}")
+    return write_gallery(iter_shard_samples(folder), out, n, seed, title=f"refspatial-gen preview: {Path(folder).name}")
