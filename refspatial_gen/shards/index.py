@@ -52,17 +52,19 @@ def build_index(shards: list[dict], run_info: dict) -> dict:
     }
 
 
-def write_index(out_dir: Path | str, shards: list[dict], run_info: dict) -> None:
-    """Write `out_dir/index.json` atomically (temp name + rename)."""
+def write_index(out_dir: Path | str, shards: list[dict], run_info: dict) -> dict:
+    """Write `out_dir/index.json` atomically (temp name + rename); returns the index as written."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    data = dumps(build_index(shards, run_info)) + b"\n"
+    index = build_index(shards, run_info)
+    data = dumps(index) + b"\n"
     tmp = out_dir / (INDEX_NAME + ".partial")
     with open(tmp, "wb") as f:
         f.write(data)
         f.flush()
         os.fsync(f.fileno())
     os.replace(tmp, out_dir / INDEX_NAME)
+    return index
 
 
 def read_index(out_dir: Path | str) -> dict:

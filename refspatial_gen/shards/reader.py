@@ -15,7 +15,7 @@ from refspatial_gen.core.model import Sample
 from refspatial_gen.shards.format import RawSample, is_complete
 
 
-class ShardError(Exception):
+class ShardError(ValueError):
     """A shard that cannot be read as it should: `path` and a plain-language `reason`."""
 
     def __init__(self, path: Path | str, reason: str) -> None:

@@ -67,11 +67,11 @@ def sha256_file(path: Path, block: int = 1 << 20) -> str:
 class _Part:
     """One open MCAP file being written under its .partial name."""
 
-    def __init__(self, path: Path, chunk_size: int) -> None:
+    def __init__(self, path: Path, chunk_size: int, tmp_suffix: str = PARTIAL_SUFFIX) -> None:
         from mcap.writer import CompressionType, Writer
 
         self.path = Path(path)
-        self.tmp = self.path.with_name(self.path.name + PARTIAL_SUFFIX)
+        self.tmp = self.path.with_name(self.path.name + tmp_suffix)
         self.tmp.parent.mkdir(parents=True, exist_ok=True)
         self.f = open(self.tmp, "wb")
         self.w = Writer(self.f, chunk_size=chunk_size, compression=CompressionType.ZSTD)
