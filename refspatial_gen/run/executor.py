@@ -161,6 +161,10 @@ def _check_output_dir(out_dir: Path, fingerprint: dict[str, Any], fresh: bool) -
             if p.is_file():
                 p.unlink()
     (out_dir / PARTS).mkdir(parents=True, exist_ok=True)
+    # leftovers of a killed run: a half-written index or group record (shard partials are redone per group)
+    for p in [out_dir / "index.json.partial", *(out_dir / PARTS).glob("*.tmp")]:
+        if p.is_file():
+            p.unlink()
     atomic_write_bytes(marker, dumps(fingerprint))
 
 
@@ -201,7 +205,7 @@ def run_plan(recipe: Recipe, ref: RecipeRef, out_dir: Path, workers: int = 1, ex
         for s in records[idx]["shards"]:
             shards.append({**s, "group": idx})
     if os.environ.get(FAULT_ENV) == "index":  # simulate dying half-way through writing the index
-        (out_dir / "index.json.tmp").write_bytes(b'{"shards": [')
+        (out_dir / "index.json.partial").write_bytes(b'{"shards": [')
         _fault("index")
     index = write_index(out_dir, shards, {**fingerprint, "stats": total})
     wall = time.time() - t_start
