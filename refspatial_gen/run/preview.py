@@ -297,7 +297,7 @@ _CSS = """
 body{font-family:system-ui,-apple-system,"DejaVu Sans",sans-serif;margin:0;background:#f4f5f7;color:#1d1f23}
 header{background:#1d1f23;color:#fff;padding:14px 24px}header h1{margin:0;font-size:20px}
 header p{margin:4px 0 0;color:#bbb;font-size:13px}
-main{display:grid;grid-template-columns:repeat(auto-fill,minmax(380px,1fr));gap:16px;padding:16px 24px}
+main{display:grid;grid-template-columns:repeat(auto-fill,minmax(440px,1fr));gap:16px;padding:16px 24px}
 .card{margin:0;background:#fff;border-radius:6px;box-shadow:0 1px 3px rgba(0,0,0,.15);overflow:hidden}
 .card img{display:block;width:100%;height:auto}.card figcaption{padding:8px 12px 12px;font-size:13px}
 .meta{color:#555;font-size:12px}.q{margin-top:6px}.a{margin-top:4px;font-weight:600;color:#b3261e}
