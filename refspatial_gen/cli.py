@@ -13,6 +13,7 @@ from refspatial_gen.core.errors import RecipeError, RecipeErrors
 COMMAND_MODULES = [
     "refspatial_gen.run.preview_commands",
     "refspatial_gen.run.commands",
+    "refspatial_gen.shards.commands",
 ]
 
 
