@@ -159,3 +159,13 @@ def test_report_from_the_run_stats_of_real_samples(tmp_path, toy_frame):
     assert rep["derived"]["drop_rate"] == 0.5
     mean_x = np.mean([q.answer_struct["points"][0][0] for q in qas])
     assert abs(rep["derived"]["answer_location"]["mean"][0] - mean_x) <= 0.025  # within half a cell
+
+
+def test_internal_errors_are_flagged_and_escaped(tmp_path):
+    log = {**RUN_LOG, "errors": ["Traceback ...\nValueError: bad <b>input</b>"] * 23, "groups_run": 4}
+    html = write_report(tmp_path, make_stats(), log, {"recipe": "toy.yaml", "sources": [{"kind": "toy", "weight": 1.0}]}).read_text()
+    head = html[html.index("<header>") : html.index("</header>")]
+    assert "internal errors" in head and ">23<" in head
+    assert "Internal errors (23)" in html and html.count("<pre>") == 20 and "3 more in run_log.json" in html
+    assert "<b>input</b>" not in html and "&lt;b&gt;input&lt;/b&gt;" in html
+    assert "refspatial-gen run report: toy.yaml" in html and '{&quot;kind&quot;: &quot;toy&quot;' in html

@@ -16,6 +16,7 @@ from __future__ import annotations
 import html
 import json
 import math
+import re
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -271,18 +272,33 @@ section{background:#fff;border-radius:6px;box-shadow:0 1px 3px rgba(0,0,0,.12);p
 section h2{font-size:17px;margin:0 0 8px}
 .row{display:flex;flex-wrap:wrap;gap:18px;align-items:flex-start}.row>div.text{flex:1 1 320px;min-width:280px}
 img{max-width:100%;height:auto;border:1px solid #e3e4e8}
-table{border-collapse:collapse;font-size:13px}td,th{padding:2px 10px 2px 0;text-align:left;vertical-align:top}
+table{border-collapse:collapse;font-size:13px}pre{white-space:pre-wrap;font-size:12px;background:#f6f6f8;padding:6px}td,th{padding:2px 10px 2px 0;text-align:left;vertical-align:top}
 th{color:#555;font-weight:600}td.n{text-align:right;font-variant-numeric:tabular-nums}
 .muted{color:#777;font-size:13px}
 table.grid td{width:64px;text-align:center;border:1px solid #ddd;padding:4px}
 """
 
 
+def _cell(v: Any, limit: int = 160) -> str:
+    """A value as short text for a table cell: lists of records one per line, long text cut."""
+    if isinstance(v, list) and all(isinstance(x, dict) for x in v) and v:
+        text = "; ".join(json.dumps(x, sort_keys=True) for x in v)
+    elif isinstance(v, (dict, list)):
+        text = json.dumps(v, sort_keys=True)
+    else:
+        text = str(v)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 def _table(rows: Sequence[tuple[str, Any]], header: tuple[str, str] | None = None) -> str:
     e = html.escape
     head = f"<tr><th>{e(header[0])}</th><th>{e(header[1])}</th></tr>" if header else ""
-    body = "".join(f"<tr><td>{e(str(k))}</td><td class=\"n\">{e(v if isinstance(v, str) else f'{v:,}')}</td></tr>"
-                   for k, v in rows)
+    def cell(v: Any) -> str:
+        text = v if isinstance(v, str) else f"{v:,}"
+        numeric = re.fullmatch(r"[-+]?[\d,]*\.?\d+( ?(s|%|MB|/s))?", text) is not None
+        return f'<td class="n">{e(text)}</td>' if numeric else f"<td>{e(text)}</td>"
+
+    body = "".join(f"<tr><td>{e(str(k))}</td>{cell(v)}</tr>" for k, v in rows)
     return f"<table>{head}{body}</table>"
 
 
@@ -301,13 +317,15 @@ def render_html(report: dict[str, Any]) -> str:
     e = html.escape
     stats, run_log, recipe, d, plots = (report["stats"], report["run_log"], report["recipe"], report["derived"],
                                         report["plots"])
-    title = f"refspatial-gen run report: {recipe.get('name') or 'run'}"
+    title = f"refspatial-gen run report: {recipe.get('name') or recipe.get('recipe') or 'run'}"
     cards = [("samples", f"{stats['samples']:,}", False), ("QA pairs", f"{stats['qa_pairs']:,}", False),
              ("dropped", f"{d['dropped_total']:,}" + (f" ({100 * d['drop_rate']:.1f}%)" if d["drop_rate"] is not None else ""),
               d["dropped_total"] > 0),
              ("QA / s", _fmt_rate(run_log.get("qa_per_s"), ""), False),
              ("units / s", _fmt_rate(run_log.get("units_per_s"), ""), False),
              ("wall time", f"{float(run_log.get('wall_seconds') or 0):,.1f} s", False)]
+    if run_log.get("errors"):
+        cards.append(("internal errors", f"{len(run_log['errors']):,}", True))
     card_html = "".join(f'<div class="card{" bad" if bad else ""}"><div class="v">{e(v)}</div><div class="k">{e(k)}</div></div>'
                         for k, v, bad in cards)
     sub = " · ".join(e(str(x)) for x in (
@@ -316,10 +334,11 @@ def render_html(report: dict[str, Any]) -> str:
         f"seed {recipe.get('seed', '?')}") if x)
     parts = [f"<header><h1>{e(title)}</h1><div class=\"sub\">{sub}</div><div class=\"cards\">{card_html}</div></header><main>"]
 
-    recipe_rows = [(k, json.dumps(v, sort_keys=True) if isinstance(v, (dict, list)) else str(v))
-                   for k, v in sorted(recipe.items())]
-    run_rows = [(k, f"{v:,.3f}" if isinstance(v, float) else str(v)) for k, v in sorted(run_log.items())
-                if k != "stage_seconds"]
+    recipe_rows = [(k, _cell(v)) for k, v in sorted(recipe.items())]
+    run_rows = [(k, f"{v:,.3f}" if isinstance(v, float) else _cell(v)) for k, v in sorted(run_log.items())
+                if k not in ("stage_seconds", "errors")]
+    errors = run_log.get("errors") or []
+    run_rows.append(("internal errors", str(len(errors))))
     parts.append(_section("Run", '<div class="row">' + _table(recipe_rows, ("recipe", "")) + _table(run_rows, ("run", ""))
                           + _table([("units planned", f"{stats.get('units', 0):,}"),
                                     ("QA pairs per sample", str(d["qa_per_sample"] if d["qa_per_sample"] is not None else "-")),
@@ -364,6 +383,12 @@ def render_html(report: dict[str, Any]) -> str:
                 ("workers", str(run_log.get("workers", "?"))),
                 ("peak RSS per worker", f"{float(run_log.get('peak_rss_mb_per_worker') or 0):,.0f} MB")]
         parts.append(_section("Throughput", f'<div class="row">{_img(plots, "throughput", "throughput")}{_table(rows)}</div>'))
+    if errors:
+        items = "".join(f"<pre>{e(_cell(x, 4000))}</pre>" for x in errors[:20])
+        more = f"<p class=\"muted\">... and {len(errors) - 20} more in run_log.json</p>" if len(errors) > 20 else ""
+        parts.append(_section(f"Internal errors ({len(errors)})",
+                              "<p>Units that failed with an unexpected exception (counted as dropped). "
+                              f"These are bugs, not bad input.</p><details><summary>tracebacks</summary>{items}{more}</details>"))
     parts.append('<p class="muted">Written by refspatial-gen. Figures in report.json; plots are PNG files beside this page.</p></main>')
     return (f'<!doctype html>\n<html lang="en"><head><meta charset="utf-8"><title>{e(title)}</title>'
             f"<style>{_CSS}</style></head><body>\n" + "\n".join(parts) + "\n</body></html>\n")
