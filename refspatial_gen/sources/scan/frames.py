@@ -128,6 +128,23 @@ def in_image_fraction(cam: Camera, box: Box3D) -> float:
     return float(ok.mean())
 
 
+def in_image_share(cam: Camera, box: Box3D, sil_pixels_in_image: int) -> float:
+    """Share of the box's silhouette that falls inside the image: exact (pixel count over the projected
+    hull's area) when the box is fully in front of the camera, else the volume-sample estimate, never
+    below one sample (1/512) when some of it is in the image."""
+    import cv2
+
+    pc = cam.world_to_cam(box.corners())
+    if np.all(pc[:, 2] > 1e-6):
+        uv, _ = cam.project_cam(pc)
+        hull = cv2.convexHull(uv.astype(np.float32))
+        area = float(cv2.contourArea(hull))
+        if area > 0:
+            return float(min(1.0, sil_pixels_in_image / area))
+    share = in_image_fraction(cam, box)
+    return max(share, 1.0 / 512) if sil_pixels_in_image > 0 else share
+
+
 def inside_box(local: np.ndarray, size: np.ndarray, pad: float, bottom_trim: float, world_z: np.ndarray,
                bottom_z: float) -> np.ndarray:
     """Points (in box coordinates) inside the padded box, minus a slab just above the box's lowest point."""
@@ -187,7 +204,7 @@ def object_visibility(cam: Camera, depth: np.ndarray, box: Box3D, config: dict[s
     n_in, n_occ, n_thr = int(inside.sum()), int(occluded.sum()), int(through.sum())
     fill = n_in / (n_in + n_thr) if n_in + n_thr else 0.0
     frac_unoccluded = n_in / (n_in + fill * n_occ) if n_in else 0.0
-    visible_fraction = frac_unoccluded * in_image_fraction(cam, box)
+    visible_fraction = frac_unoccluded * in_image_share(cam, box, int(sil.sum()))
     out = {"mask": mask, "visible_pixels": n_in, "occluded_pixels": n_occ, "see_through_pixels": n_thr,
            "visible_fraction": visible_fraction, "fraction_method": "depth_pixels"}
     if points is not None:
@@ -206,8 +223,9 @@ def object_visibility(cam: Camera, depth: np.ndarray, box: Box3D, config: dict[s
             near_world = cam.cam_to_world(cam.backproject(u + 0.5, v + 0.5, dz))
             self_hidden = (dz > 0) & box.contains(near_world, pad)
             seen |= self_hidden
-            out["visible_fraction"] = float(seen.sum()) / len(own)
-            out["fraction_method"] = "object_points"
+            if seen.any():  # else the mask rests on other points than the object's own: keep the pixel estimate
+                out["visible_fraction"] = float(seen.sum()) / len(own)
+                out["fraction_method"] = "object_points"
             out["object_points"] = int(len(own))
     return out
 
@@ -258,7 +276,14 @@ def view_to_frame(view: ScanView, config: dict[str, Any]) -> Frame:
     depth = view.depth
     if depth is not None:
         check_depth(depth, rgb.shape[:2])
+    w0 = cam.width
     rgb, depth, cam = resize_view(rgb, depth, cam, int(cfg(config, "max_width")))
+    if cam.width != w0:  # annotated 2D boxes follow the image into the emitted pixel grid
+        sx, sy = cam.width / w0, cam.height / view.rgb.shape[0]
+        for sb in view.boxes:
+            b = sb.provenance.get("bbox2d_annotated")
+            if b is not None:
+                sb.provenance["bbox2d_annotated"] = [round(b[0] * sx, 3), round(b[1] * sy, 3), round(b[2] * sx, 3), round(b[3] * sy, 3)]
     meta: dict[str, Any] = {"reader": view.reader, "view_id": view.view_id, "gravity_source": view.gravity_source,
                             **view.meta}
     if depth is None:
