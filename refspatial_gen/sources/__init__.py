@@ -32,6 +32,7 @@ class SceneSource(Protocol):
 # name -> "module:attribute" (imported lazily so heavy dependencies load only when used)
 _SOURCES: dict[str, str] = {
     "toy": "refspatial_gen.sources.toy:ToySource",
+    "sim": "refspatial_gen.sources.sim:SimSource",
     "image": "refspatial_gen.sources.image:ImageSource",
     "scan": "refspatial_gen.sources.scan:ScanSource",
 }

@@ -1,0 +1,342 @@
+"""Random scene layouts: furniture (tables, counters, shelves, floor, walls) and objects placed on them.
+
+Why footprints: placing each object by its convex footprint (shapely polygons) on a rectangular surface,
+with a clearance, guarantees no interpenetration before physics; stacking puts an object on a flat top
+that contains its footprint; containment drops a small object into a container's cavity. Physics then
+only has to let everything come to rest.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from shapely.geometry import MultiPoint, Polygon, box as shp_box
+from shapely import affinity
+
+from refspatial_gen.assets import AssetGeometry, Catalog, Category, build_geometry
+from refspatial_gen.assets.external import external_available
+
+CLEARANCE = 0.012  # metres between footprints on one surface
+DROP_GAP = 0.002  # objects start this far above their support
+
+
+@dataclass
+class StaticBox:
+    """A fixed box of furniture or room (centre, half extents, appearance key)."""
+
+    name: str
+    center: np.ndarray
+    half: np.ndarray
+    look: str  # "table", "counter", "shelf", "wall", "leg"
+
+
+@dataclass
+class Surface:
+    """A rectangular horizontal support (axis-aligned): things are placed on its top at `z`."""
+
+    id: str
+    kind: str  # table, counter, shelf, floor
+    name: str
+    center: np.ndarray  # (x, y) centre
+    half: np.ndarray  # (hx, hy)
+    z: float
+    thickness: float
+    max_height: float = 10.0  # free height above the top (shelves)
+    fps: list = field(default_factory=list)  # footprints placed on it
+
+    def rect(self, margin: float = 0.0) -> Polygon:
+        (x, y), (hx, hy) = self.center, self.half
+        return shp_box(x - hx + margin, y - hy + margin, x + hx - margin, y + hy - margin)
+
+
+@dataclass
+class PlacedObject:
+    """One movable object with its appearance and its start pose (origin = bottom centre)."""
+
+    key: str  # unique per scene: "o03"
+    category: Category
+    geometry: AssetGeometry
+    color: str
+    rgb: np.ndarray
+    accent_rgb: np.ndarray
+    material: str
+    pos: np.ndarray
+    yaw: float
+    support: str  # surface id, "on:<key>" or "in:<key>"
+    footprint: Any = None
+    top_fps: list = field(default_factory=list)  # footprints of things stacked on it
+
+
+@dataclass
+class SceneDesc:
+    kind: str  # "tabletop" | "room"
+    objects: list[PlacedObject]
+    statics: list[StaticBox]
+    surfaces: list[Surface]
+    focus: list[str]  # surface ids the cameras aim at
+    room_half: np.ndarray  # (hx, hy) of the floor area
+    walls: bool
+    appearance: dict[str, Any]
+
+
+def footprint(geo: AssetGeometry, yaw: float) -> Polygon:
+    pts = geo.hull_points()[:, :2]
+    c, s = np.cos(yaw), np.sin(yaw)
+    xy = pts @ np.array([[c, s], [-s, c]])
+    return MultiPoint([tuple(p) for p in xy]).convex_hull
+
+
+def _jitter_rgb(rgb, rng: np.random.Generator, amount: float = 0.06) -> np.ndarray:
+    return np.clip(np.asarray(rgb) * (1 + rng.uniform(-amount, amount, 3)), 0, 1)
+
+
+class LayoutBuilder:
+    """Collects furniture and objects for one scene, drawing everything from one Generator."""
+
+    def __init__(self, catalog: Catalog, rng: np.random.Generator, cfg: dict[str, Any]):
+        self.cat, self.rng, self.cfg = catalog, rng, cfg
+        self.objects: list[PlacedObject] = []
+        self.statics: list[StaticBox] = []
+        self.surfaces: list[Surface] = []
+        ext_ok = [n for n in catalog.names() if catalog.categories[n].builder == "external"
+                  and external_available(catalog.categories[n])]
+        self.external = ext_ok if cfg.get("external_prob", 0.0) > 0 else []
+
+    # ------------------------------------------------------------------ furniture
+    def add_table(self, sid: str, kind: str, name: str, cx: float, cy: float, hx: float, hy: float, h: float,
+                  legs: bool = True, max_height: float = 10.0, look: str | None = None) -> Surface:
+        t = 0.03 if kind != "shelf" else 0.02
+        self.statics.append(StaticBox(f"{sid}_top", np.array([cx, cy, h - t / 2]), np.array([hx, hy, t / 2]), look or kind))
+        if legs:
+            for sx in (-1, 1):
+                for sy in (-1, 1):
+                    self.statics.append(StaticBox(f"{sid}_leg{sx}{sy}", np.array([cx + sx * (hx - 0.05), cy + sy * (hy - 0.05), (h - t) / 2]),
+                                                  np.array([0.025, 0.025, (h - t) / 2]), "leg"))
+        s = Surface(sid, kind, name, np.array([cx, cy]), np.array([hx, hy]), h, t, max_height)
+        self.surfaces.append(s)
+        return s
+
+    # ------------------------------------------------------------------ objects
+    def pick_category(self, scale: str, want_inside: bool = False) -> Category:
+        rng = self.rng
+        if self.external and scale == "tabletop" and not want_inside and rng.random() < self.cfg.get("external_prob", 0.0):
+            return self.cat.categories[self.external[int(rng.integers(len(self.external)))]]
+        same = [o.category for o in self.objects if o.category.scale == scale and o.category.builder != "external"
+                and (o.category.fits_inside or not want_inside)]
+        if same and rng.random() < self.cfg.get("repeat_prob", 0.3):
+            return same[int(rng.integers(len(same)))]
+        names = [n for n in self.cat.names(scale) if self.cat.categories[n].builder != "external"
+                 and (self.cat.categories[n].fits_inside or not want_inside)]
+        w = np.array([self.cat.categories[n].weight for n in names])
+        return self.cat.categories[names[int(rng.choice(len(names), p=w / w.sum()))]]
+
+    def make(self, cat: Category) -> tuple[AssetGeometry, str, np.ndarray, np.ndarray, str]:
+        rng = self.rng
+        geo = build_geometry(cat, cat.sample_dims(rng), rng)
+        used = {o.color for o in self.objects if o.category.name == cat.name}
+        fresh = [c for c in cat.colors if c not in used] or list(cat.colors)
+        color = fresh[int(rng.integers(len(fresh)))]
+        acc_names = list(cat.accent) or ["black", "white", "gray"]
+        accent = acc_names[int(rng.integers(len(acc_names)))]
+        mat = cat.materials[int(rng.integers(len(cat.materials)))]
+        return geo, color, _jitter_rgb(self.cat.colors[color], rng), _jitter_rgb(self.cat.colors[accent], rng), mat
+
+    def _yaw_for(self, cat: Category, xy: np.ndarray) -> float:
+        """Random yaw; objects with a front sometimes face another object exactly (facing relations)."""
+        rng = self.rng
+        others = self.objects
+        if cat.front is not None and others and rng.random() < self.cfg.get("face_prob", 0.35):
+            t = others[int(rng.integers(len(others)))].pos[:2]
+            ang = np.arctan2(t[1] - xy[1], t[0] - xy[0]) - np.arctan2(cat.front[1], cat.front[0])
+            return float(ang + rng.normal(0, 0.08))
+        return float(rng.uniform(-np.pi, np.pi))
+
+    def _add(self, cat, geo, color, rgb, acc, mat, pos, yaw, support, fp) -> PlacedObject:
+        o = PlacedObject(f"o{len(self.objects):02d}", cat, geo, color, rgb, acc, mat, np.asarray(pos, float), yaw, support, fp)
+        self.objects.append(o)
+        return o
+
+    def place_on_surface(self, surf: Surface, cat: Category, tries: int = 30) -> PlacedObject | None:
+        rng = self.rng
+        geo, color, rgb, acc, mat = self.make(cat)
+        lo, hi = geo.bounds()
+        if hi[2] - lo[2] > surf.max_height - 0.02:
+            return None
+        edge_p = self.cfg.get("edge_prob", 0.3)
+        rect = surf.rect(0.01)
+        for _ in range(tries):
+            r = rng.random()
+            if r < edge_p:  # near an edge or a corner: the border band of the surface
+                band = 0.12
+                u = rng.uniform(-1, 1, 2)
+                side = int(rng.integers(2))
+                u[side] = np.sign(u[side] + 1e-9) * rng.uniform(1 - band / max(surf.half[side], band), 1)
+                if rng.random() < 0.4:  # corner
+                    u[1 - side] = np.sign(u[1 - side] + 1e-9) * rng.uniform(1 - band / max(surf.half[1 - side], band), 1)
+                xy = surf.center + u * surf.half
+            else:
+                xy = surf.center + rng.uniform(-1, 1, 2) * surf.half
+            yaw = self._yaw_for(cat, xy)
+            fp = affinity.translate(footprint(geo, yaw), xy[0], xy[1])
+            if not rect.contains(fp):
+                # pull it inwards just enough: try the nearest position that fits
+                minx, miny, maxx, maxy = fp.bounds
+                rx0, ry0, rx1, ry1 = rect.bounds
+                dx = max(0.0, rx0 - minx) - max(0.0, maxx - rx1)
+                dy = max(0.0, ry0 - miny) - max(0.0, maxy - ry1)
+                fp = affinity.translate(fp, dx, dy)
+                xy = xy + np.array([dx, dy])
+                if not rect.contains(fp):
+                    continue
+            if any(fp.distance(o) < CLEARANCE for o in surf.fps):
+                continue
+            surf.fps.append(fp)
+            pos = np.array([xy[0], xy[1], surf.z - lo[2] + DROP_GAP])
+            return self._add(cat, geo, color, rgb, acc, mat, pos, yaw, surf.id, fp)
+        return None
+
+    def stack_on(self, base: PlacedObject, cat: Category, tries: int = 15) -> PlacedObject | None:
+        rng = self.rng
+        geo, color, rgb, acc, mat = self.make(cat)
+        lo, hi = geo.bounds()
+        blo, bhi = base.geometry.bounds()
+        top = base.footprint.buffer(-0.005)
+        for _ in range(tries):
+            yaw = float(rng.uniform(-np.pi, np.pi))
+            fp0 = footprint(geo, yaw)
+            c = np.array(base.footprint.centroid.coords[0]) + rng.normal(0, 0.02, 2)
+            fp = affinity.translate(fp0, c[0], c[1])
+            if fp.area > top.area * 0.9 or not top.contains(fp.centroid) or fp.difference(top).area > 0.15 * fp.area:
+                continue
+            if any(fp.distance(o) < CLEARANCE for o in base.top_fps):
+                continue
+            base.top_fps.append(fp)
+            z = base.pos[2] + bhi[2] - lo[2] + DROP_GAP
+            return self._add(cat, geo, color, rgb, acc, mat, np.array([c[0], c[1], z]), yaw, f"on:{base.key}", fp)
+        return None
+
+    def put_inside(self, box: PlacedObject, cat: Category, tries: int = 15) -> PlacedObject | None:
+        rng = self.rng
+        geo, color, rgb, acc, mat = self.make(cat)
+        lo, hi = geo.bounds()
+        cc, cs = box.geometry.cavity
+        cav = affinity.rotate(shp_box(-cs[0] / 2 + 0.004, -cs[1] / 2 + 0.004, cs[0] / 2 - 0.004, cs[1] / 2 - 0.004),
+                              box.yaw, origin=(0, 0), use_radians=True)
+        cav = affinity.translate(cav, box.pos[0] + cc[0], box.pos[1] + cc[1])
+        for _ in range(tries):
+            yaw = float(rng.uniform(-np.pi, np.pi))
+            c = np.array(cav.centroid.coords[0]) + rng.normal(0, 0.01, 2)
+            fp = affinity.translate(footprint(geo, yaw), c[0], c[1])
+            if not cav.contains(fp) or any(fp.distance(o) < 0.004 for o in box.top_fps):
+                continue
+            box.top_fps.append(fp)
+            z = box.pos[2] - box.geometry.bounds()[0][2] + cc[2] - cs[2] / 2 - lo[2] + DROP_GAP
+            return self._add(cat, geo, color, rgb, acc, mat, np.array([c[0], c[1], z]), yaw, f"in:{box.key}", fp)
+        return None
+
+    def fill(self, surfaces: list[Surface], n: int, scale: str = "tabletop") -> None:
+        """Place `n` objects on the given surfaces, stacking and filling containers now and then."""
+        rng = self.rng
+        stack_p, inside_p = self.cfg.get("stack_prob", 0.25), self.cfg.get("inside_prob", 0.3)
+        placed, attempts = 0, 0
+        while placed < n and attempts < 4 * n + 10:
+            attempts += 1
+            mine = [o for o in self.objects if o.support in {s.id for s in surfaces}]
+            containers = [o for o in mine if o.geometry.cavity is not None and len(o.top_fps) < 2]
+            flats = [o for o in mine if o.geometry.flat_top and len(o.top_fps) < 2]
+            r = rng.random()
+            obj = None
+            if containers and r < inside_p:
+                obj = self.put_inside(containers[int(rng.integers(len(containers)))], self.pick_category(scale, want_inside=True))
+            elif flats and r < inside_p + stack_p:
+                obj = self.stack_on(flats[int(rng.integers(len(flats)))], self.pick_category(scale))
+            else:
+                obj = self.place_on_surface(surfaces[int(rng.integers(len(surfaces)))], self.pick_category(scale))
+            placed += obj is not None
+
+
+TABLE_TINTS = [(1.0, 0.85, 0.7), (0.75, 0.55, 0.4), (0.55, 0.38, 0.25), (0.95, 0.95, 0.95), (0.35, 0.35, 0.37), (0.9, 0.8, 0.65)]
+
+
+def _appearance(rng: np.random.Generator) -> dict[str, Any]:
+    tint = np.array(TABLE_TINTS[int(rng.integers(len(TABLE_TINTS)))]) * rng.uniform(0.9, 1.1)
+    return {
+        "table_tex": int(rng.integers(4)), "table_tint": np.clip(tint, 0, 1),
+        "floor_tex": int(rng.integers(3)), "floor_rgb1": rng.uniform(0.35, 0.8) * np.array(TABLE_TINTS[int(rng.integers(len(TABLE_TINTS)))]), "floor_rgb2": rng.uniform(0.2, 0.7, 3),
+        "wall_rgb": rng.uniform(0.65, 0.95, 3), "counter_rgb": np.array(TABLE_TINTS[int(rng.integers(len(TABLE_TINTS)))]) * rng.uniform(0.6, 1.0),
+        "light_dir": [float(rng.uniform(-0.6, 0.6)), float(rng.uniform(-0.6, 0.6)), -1.0],
+        "light_diffuse": float(rng.uniform(0.45, 0.8)), "ambient": float(rng.uniform(0.25, 0.45)),
+        "light_warm": rng.uniform(0.9, 1.0, 3),
+    }
+
+
+def tabletop_layout(catalog: Catalog, rng: np.random.Generator, cfg: dict[str, Any], n_objects: int) -> SceneDesc:
+    b = LayoutBuilder(catalog, rng, cfg)
+    hx, hy, h = rng.uniform(0.4, 0.8), rng.uniform(0.3, 0.5), rng.uniform(0.72, 0.78)
+    table = b.add_table("table", "table", "the table", 0.0, 0.0, hx, hy, h)
+    b.fill([table], n_objects)
+    return SceneDesc("tabletop", b.objects, b.statics, b.surfaces, ["table"], rng.uniform(2.0, 3.0, 2), True,
+                     _appearance(rng))
+
+
+def room_layout(catalog: Catalog, rng: np.random.Generator, cfg: dict[str, Any], n_objects: int) -> SceneDesc:
+    """A room corner: floor, two walls, a table with chairs, maybe a counter and a shelf, floor objects."""
+    b = LayoutBuilder(catalog, rng, cfg)
+    rx, ry = rng.uniform(1.8, 2.5), rng.uniform(1.8, 2.5)
+    floor = Surface("floor", "floor", "the floor", np.zeros(2), np.array([rx, ry]), 0.0, 0.0)
+    b.surfaces.append(floor)
+    thx, thy, th = rng.uniform(0.5, 0.8), rng.uniform(0.35, 0.5), rng.uniform(0.72, 0.78)
+    tcx, tcy = rng.uniform(-0.4, 0.4), rng.uniform(-0.2, 0.4)
+    table = b.add_table("table", "table", "the table", tcx, tcy, thx, thy, th)
+    floor.fps.append(table.rect().buffer(0.02))
+    top_surfaces = [table]
+    if rng.random() < 0.6:  # counter along the back wall
+        cl = rng.uniform(0.6, 1.1)
+        cx = float(np.clip(tcx + rng.uniform(-1, 1), -rx + cl + 0.05, rx - cl - 0.05))
+        c = b.add_table("counter", "counter", "the counter", cx, ry - 0.3, cl, 0.3, 0.9, legs=False)
+        b.statics.append(StaticBox("counter_body", np.array([cx, ry - 0.3, 0.44]), np.array([cl, 0.29, 0.44]), "counter"))
+        floor.fps.append(c.rect().buffer(0.02))
+        top_surfaces.append(c)
+    if rng.random() < 0.5:  # shelf unit against the left wall, three boards
+        sw, sd = rng.uniform(0.4, 0.6), 0.18
+        sy = float(rng.uniform(-ry + sw + 0.1, ry - sw - 0.7))
+        levels = [0.05, 0.42, 0.8]
+        for i, z in enumerate(levels):
+            ttop = z + 0.02
+            nm = ["the bottom shelf", "the middle shelf", "the top shelf"][i]
+            s = b.add_table(f"shelf{i}", "shelf", nm, -rx + sd + 0.01, sy, sd, sw, ttop, legs=False, max_height=0.34 if i < 2 else 0.6,
+                            look="shelf")
+            top_surfaces.append(s)
+        for sgn in (-1, 1):
+            b.statics.append(StaticBox(f"shelf_side{sgn}", np.array([-rx + sd + 0.01, sy + sgn * (sw + 0.01), 0.6]), np.array([sd, 0.01, 0.6]), "shelf"))
+        floor.fps.append(shp_box(-rx, sy - sw - 0.05, -rx + 2 * sd + 0.05, sy + sw + 0.05))
+    # chairs around the table, facing it (some turned away a little)
+    n_room = 0
+    for side in rng.permutation(4)[: int(rng.integers(1, 4))]:
+        cat = catalog.categories["chair"] if "chair" in catalog.categories else None
+        if cat is None:
+            break
+        geo, color, rgb, acc, mat = b.make(cat)
+        d = np.array([[1, 0], [-1, 0], [0, 1], [0, -1]][side], float)
+        off = (thx if side < 2 else thy) + 0.27 + rng.uniform(0.0, 0.2)
+        xy = np.array([tcx, tcy]) + d * off + (np.array([0, rng.uniform(-0.3, 0.3)]) if side < 2 else np.array([rng.uniform(-0.4, 0.4), 0]))
+        yaw = float(np.arctan2(-d[1], -d[0]) + rng.normal(0, 0.15))
+        fp = affinity.translate(footprint(geo, yaw), xy[0], xy[1])
+        if not floor.rect(0.05).contains(fp) or any(fp.distance(o) < CLEARANCE for o in floor.fps):
+            continue
+        floor.fps.append(fp)
+        lo = geo.bounds()[0]
+        b._add(cat, geo, color, rgb, acc, mat, np.array([xy[0], xy[1], -lo[2] + DROP_GAP]), yaw, "floor", fp)
+        n_room += 1
+    k_floor = int(rng.integers(1, 4))
+    for _ in range(k_floor):
+        if b.place_on_surface(floor, b.pick_category("room"), tries=20) is not None:
+            n_room += 1
+    b.fill(top_surfaces, max(1, n_objects - n_room))
+    statics = b.statics
+    return SceneDesc("room", b.objects, statics, b.surfaces, ["table"], np.array([rx, ry]), True, _appearance(rng))
+
+
+LAYOUTS = {"tabletop": tabletop_layout, "room": room_layout}
