@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import json
 import re
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -265,12 +263,47 @@ def test_preview_command_is_registered_and_reports_missing_shards(tmp_path, caps
 def test_preview_command_reads_real_shards(tmp_path):
     reader = pytest.importorskip("refspatial_gen.shards.reader", reason="shards package not available yet")
     writer_mod = pytest.importorskip("refspatial_gen.shards.writer", reason="shard writer not available yet")
-    shard = tmp_path / "shards" / "shard-00000.mcap"
-    shard.parent.mkdir()
-    w = writer_mod.ShardWriter(shard)
-    for _, s in _stream(2):
-        w.write(s)
-    w.finish()
-    assert sum(1 for _ in reader.read_samples(shard)) == 2
-    assert _preview_cli(["preview", str(tmp_path / "shards"), "--out", str(tmp_path / "o"), "--n", "3"])[1] == 0
-    assert len(list((tmp_path / "o").glob("qa_*.png"))) == 3
+    from refspatial_gen.run.preview import iter_shard_samples, pick_from_shards
+
+    stream = list(_stream(4))
+    for k in range(2):  # two shards of two samples, in a nested folder
+        shard = tmp_path / "run" / "shards" / f"shard-{k:05d}.mcap"
+        shard.parent.mkdir(parents=True, exist_ok=True)
+        w = writer_mod.ShardWriter(shard)
+        for _, s in stream[2 * k : 2 * k + 2]:
+            w.write(s)
+        w.finish()
+        assert sum(1 for _ in reader.read_samples(shard)) == 2
+    (tmp_path / "run" / "shards" / "shard-00009.mcap.partial").write_bytes(b"junk")  # unfinished: ignored
+    # the metadata-only sampling pass picks exactly what sampling the decoded stream picks
+    for seed in (0, 1, 2):
+        fast = pick_from_shards(tmp_path / "run", 5, seed)
+        full = reservoir_pick(iter_shard_samples(tmp_path / "run"), 5, seed)
+        assert [p for p, _ in fast] == [p for p, _ in full]
+        assert [s.sample_id for _, s in fast] == [s.sample_id for _, s in full]
+    assert _preview_cli(["preview", str(tmp_path / "run"), "--out", str(tmp_path / "o"), "--n", "5"])[1] == 0
+    listing = json.loads((tmp_path / "o" / "preview.json").read_text())
+    assert len(listing["picked"]) == 5 and len(list((tmp_path / "o").glob("qa_*.png"))) == 5
+    assert {p["source"] for p in listing["picked"]} <= {"shards/shard-00000.mcap", "shards/shard-00001.mcap"}
+    # answers still land on their targets after the shard round trip (masks are stored losslessly)
+    assert all(c["ok"] for p in listing["picked"] for c in p["checks"])
+    # fewer pairs on a re-run: stale images are removed
+    assert _preview_cli(["preview", str(tmp_path / "run"), "--out", str(tmp_path / "o"), "--n", "2"])[1] == 0
+    assert len(list((tmp_path / "o").glob("qa_*.png"))) == 2
+
+
+def test_multiview_sample_shows_frames_side_by_side_with_points_on_the_answer_frame():
+    a = make_preview_sample(seed=7, frame_id="view0")
+    b = make_preview_sample(seed=8, frame_id="view1")
+    qa = b.qa[0]  # points at an object of view1
+    qa.frame_ids = ["view0", "view1"]
+    qa.answer_struct = {**qa.answer_struct, "frame_id": "view1"}
+    s = Sample("mv", a.frames + b.frames, a.graphs + b.graphs, [qa])
+    img = render_preview(s, 0)
+    single = render_preview(b, 0)
+    assert img.shape[1] >= 2 * 720 and single.shape[1] == 720
+    half = img[:540]
+    left, right = half[:, :720], half[:, 726:726 + 720]
+    assert np.all(left == draw.ANSWER, axis=-1).sum() == 0  # no answer marker on the question-only view
+    assert np.all(right == draw.ANSWER, axis=-1).sum() > 20
+    assert point_checks(s, qa)[0][1]

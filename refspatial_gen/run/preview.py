@@ -18,7 +18,7 @@ import json
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable, Iterator
+from typing import Any, Iterable, Iterator, TypeVar
 
 import numpy as np
 
@@ -28,6 +28,7 @@ from refspatial_gen.core.serialize import encode_png
 from refspatial_gen.run import draw
 
 SHARD_SUFFIX = ".mcap"
+T = TypeVar("T")
 
 
 # ---------------------------------------------------------------------------------------------- answers
@@ -232,27 +233,32 @@ class Pick:
     qa_id: str
 
 
-def reservoir_pick(stream: Iterable[tuple[str, Sample]], n: int, seed: int) -> list[tuple[Pick, Sample]]:
-    """Algorithm R over every QA pair of the stream with a seeded Generator; sorted by stream order.
+def reservoir(items: Iterable[T], n: int, seed: int) -> list[tuple[int, T]]:
+    """Algorithm R with a seeded Generator: `n` items uniformly from a stream of unknown length.
 
-    Holds at most `n` samples (those with a chosen QA pair), so memory does not grow with the folder.
+    Returns (stream position, item) sorted by position; holds at most `n` items at any time.
     """
     if n <= 0:
         return []
     rng = np.random.default_rng(seed)
-    chosen: list[tuple[Pick, Sample]] = []
-    t = 0
-    for source, sample in stream:
-        for qi, qa in enumerate(sample.qa):
-            pick = Pick(t, source, sample.sample_id, qi, qa.qa_id)
-            if len(chosen) < n:
-                chosen.append((pick, sample))
-            else:
-                j = int(rng.integers(0, t + 1))
-                if j < n:
-                    chosen[j] = (pick, sample)
-            t += 1
-    return sorted(chosen, key=lambda ps: ps[0].order)
+    chosen: list[tuple[int, T]] = []
+    for t, item in enumerate(items):
+        if len(chosen) < n:
+            chosen.append((t, item))
+        else:
+            j = int(rng.integers(0, t + 1))
+            if j < n:
+                chosen[j] = (t, item)
+    return sorted(chosen, key=lambda ti: ti[0])
+
+
+def reservoir_pick(stream: Iterable[tuple[str, Sample]], n: int, seed: int) -> list[tuple[Pick, Sample]]:
+    """`n` QA pairs from `(source name, Sample)` pairs, every QA pair equally likely; in stream order.
+
+    Only samples with a chosen QA pair are kept, so memory does not grow with the stream.
+    """
+    items = ((src, s, qi) for src, s in stream for qi in range(len(s.qa)))
+    return [(Pick(t, src, s.sample_id, qi, s.qa[qi].qa_id), s) for t, (src, s, qi) in reservoir(items, n, seed)]
 
 
 def _safe(name: str) -> str:
@@ -262,17 +268,26 @@ def _safe(name: str) -> str:
 def write_gallery(stream: Iterable[tuple[str, Sample]], out: Path, n: int = 24, seed: int = 0,
                   title: str = "refspatial-gen preview") -> Path:
     """Render a seeded sample of `n` QA pairs from `(source_name, Sample)` pairs into `out`; returns index.html."""
+    return render_gallery(reservoir_pick(stream, n, seed), out, n, seed, title)
+
+
+def render_gallery(picks: list[tuple[Pick, Sample]], out: Path, n: int, seed: int, title: str) -> Path:
+    """One PNG per picked QA pair, `preview.json` listing them, and `index.html` linking them."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    picks = reservoir_pick(stream, n, seed)
+    for old in out.glob("qa_*.png"):  # a re-run must not leave images of another selection
+        old.unlink()
     cards, listing = [], []
     for k, (pick, sample) in enumerate(picks):
         qa = sample.qa[pick.qa_index]
+        if qa.qa_id != pick.qa_id:
+            raise ValueError(f"{pick.source}: sample {pick.sample_id} QA {pick.qa_index} is {qa.qa_id}, expected {pick.qa_id}")
         name = f"qa_{k:03d}_{_safe(pick.qa_id)}.png"
         (out / name).write_bytes(encode_png(render_preview(sample, pick.qa_index)))
+        checks = point_checks(sample, qa)
         listing.append({"file": name, "order": pick.order, "source": pick.source, "sample_id": pick.sample_id,
-                        "qa_index": pick.qa_index, "qa_id": pick.qa_id, "family": qa.family,
-                        "steps": qa.steps, "checks": [{"text": t, "ok": ok} for t, ok in point_checks(sample, qa)]})
+                        "qa_index": pick.qa_index, "qa_id": pick.qa_id, "family": qa.family, "steps": qa.steps,
+                        "checks": [{"text": t, "ok": ok} for t, ok in checks]})
         cards.append(_card(name, pick, qa, listing[-1]["checks"]))
     (out / "preview.json").write_text(json.dumps({"seed": seed, "n": n, "picked": listing}, indent=1,
                                                  sort_keys=True, ensure_ascii=False) + "\n", encoding="utf-8")
@@ -324,19 +339,48 @@ def shard_paths(folder: Path) -> list[Path]:
                   key=lambda p: p.relative_to(folder).as_posix())
 
 
+def _shard_names(folder: Path) -> list[tuple[str, Path]]:
+    folder = Path(folder)
+    return [(p.name if folder.is_file() else p.relative_to(folder).as_posix(), p) for p in shard_paths(folder)]
+
+
 def iter_shard_samples(folder: Path) -> Iterator[tuple[str, Sample]]:
-    """(shard name, Sample) over every shard under `folder`, via the shard reader."""
+    """(shard name, Sample) over every shard under `folder`, fully decoded, via the shard reader."""
     from refspatial_gen.shards.reader import read_samples
 
-    folder = Path(folder)
-    for p in shard_paths(folder):
-        name = p.name if folder.is_file() else p.relative_to(folder).as_posix()
+    for name, p in _shard_names(folder):
         for s in read_samples(p):
             yield name, s
+
+
+def pick_from_shards(folder: Path, n: int, seed: int) -> list[tuple[Pick, Sample]]:
+    """The same picks as `reservoir_pick(iter_shard_samples(folder), n, seed)`, but cheap on big folders:
+    the sampling pass reads only metadata (no pixels decoded), then only the picked samples are decoded."""
+    from refspatial_gen.shards.reader import ShardError, iter_raw, read_sample_meta
+
+    shards = _shard_names(folder)
+    items = ((name, p, m["seq"], m["sample_id"], qi, q["qa_id"])
+             for name, p in shards for m in read_sample_meta(p) for qi, q in enumerate(m["qa"]))
+    chosen = reservoir(items, n, seed)
+    wanted: dict[Path, set[int]] = {}
+    for _, (_, p, seq, *_rest) in chosen:
+        wanted.setdefault(p, set()).add(seq)
+    loaded: dict[tuple[Path, int], Sample] = {}
+    for _, p in shards:
+        if p not in wanted:
+            continue
+        for raw in iter_raw(p):
+            if raw.seq in wanted[p]:
+                try:
+                    loaded[(p, raw.seq)] = raw.decode()
+                except (ValueError, KeyError, TypeError) as e:
+                    raise ShardError(p, f"sample with sequence {raw.seq} does not decode: {e}") from None
+    return [(Pick(t, name, sid, qi, qa_id), loaded[(p, seq)]) for t, (name, p, seq, sid, qi, qa_id) in chosen]
 
 
 def preview_dir(folder: Path, out: Path, n: int = 24, seed: int = 0) -> Path:
     """`refspatial-gen preview`: gallery of `n` seeded QA pairs from the shards under `folder`."""
     if not shard_paths(folder):
         raise FileNotFoundError(f"no {SHARD_SUFFIX} shards under {folder}")
-    return write_gallery(iter_shard_samples(folder), out, n, seed, title=f"refspatial-gen preview: {Path(folder).name}")
+    return render_gallery(pick_from_shards(folder, n, seed), out, n, seed,
+                          title=f"refspatial-gen preview: {Path(folder).resolve().name}")
