@@ -1,0 +1,435 @@
+"""The `image` source: annotated photos + depth (estimated or provided) + intrinsics -> lifted 3D Frames.
+
+Unit key: "image:<absolute input folder>::<image id>" (the planner gives `load` no input path, so the key
+carries it). One unit = one photo = one Frame. Whole-image problems raise DropUnit with a reason
+(`image_undecodable`, `image_size_mismatch`, `annotation_out_of_bounds`, `annotation_size_mismatch`,
+`depth_size_mismatch`, `depth_missing`, `depth_not_metric`, `too_few_objects`, ...); single objects are
+dropped with a reason counted in `Frame.meta["dropped_objects"]`.
+"""
+
+from __future__ import annotations
+
+import time
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from refspatial_gen.core.camera import Camera
+from refspatial_gen.core.errors import DropUnit
+from refspatial_gen.core.geometry import Box3D, rot_z
+from refspatial_gen.core.mask import RLE
+from refspatial_gen.core.model import Frame, ObjectInstance, SupportSurface
+from refspatial_gen.schema import Field
+from refspatial_gen.sources.image import filters as F
+from refspatial_gen.sources.image.annotations import (
+    FORMATS, GROUND_STUFF_PREFIXES, SUPPORT_STUFF_PREFIXES, Collection, ImageRecord, annotation_mask,
+    load_collection, read_panoptic_ids,
+)
+from refspatial_gen.sources.image.intrinsics import MODES, Intrinsics, resolve_intrinsics
+
+KEY_PREFIX = "image:"
+KEY_SEP = "::"
+# thing categories whose top is a support surface when a horizontal plane lies on them
+SUPPORT_CATEGORIES = ("dining table", "table", "desk", "bed", "counter", "bench", "night_stand", "dresser",
+                      "coffee_table", "sofa", "couch", "shelf", "cabinet")
+
+
+def _depth_check(v: Any) -> str | None:
+    from refspatial_gen.depth import check_options
+
+    if not isinstance(v, dict):
+        return "must be a mapping with an 'estimator' key"
+    name = v.get("estimator")
+    if not isinstance(name, str):
+        return "needs 'estimator' (one of depth-anything, geometric, onnx, provided)"
+    return check_options(name, {k: x for k, x in v.items() if k != "estimator"})
+
+
+CONFIG_FIELDS: dict[str, Field] = {
+    "format": Field(str, default="auto", choices=FORMATS, doc="annotation format of the input folder"),
+    "annotations": Field(str, default=None, doc="annotation file inside the input folder (default: detected)"),
+    "images_dir": Field(str, default=None, doc="image folder inside the input folder (default: detected)"),
+    "depth": Field(dict, default={"estimator": "geometric"}, check=_depth_check,
+                   doc="depth estimator: {estimator: NAME, ...its options}"),
+    "intrinsics": Field(str, default="auto", choices=MODES, doc="provided | exif | fov prior | auto (in that order)"),
+    "hfov_deg": Field(float, default=60.0, min=5.0, max=170.0, doc="horizontal field of view prior"),
+    "gravity": Field(str, default="auto", choices=("auto", "plane", "prior", "none"),
+                     doc="auto: the depth prior for geometric depth, else a RANSAC floor/table plane"),
+    "camera_height": Field(float, default=1.5, min=0.05, doc="camera height prior (m)"),
+    "camera_pitch_deg": Field(float, default=0.0, min=-60.0, max=80.0, doc="downward pitch prior (deg)"),
+    "max_tilt_deg": Field(float, default=40.0, min=1.0, max=89.0, doc="largest tilt of a plane taken as horizontal"),
+    "categories": Field(list, default=None, doc="only these categories become objects (default: all things)"),
+    "min_mask_area": Field(int, default=200, min=1, doc="smallest visible mask (pixels)"),
+    "min_mask_fraction": Field(float, default=0.0005, min=0.0, max=1.0, doc="smallest mask as a fraction of the image"),
+    "min_valid_depth_fraction": Field(float, default=0.3, min=0.0, max=1.0),
+    "min_points": Field(int, default=30, min=3),
+    "max_points_per_object": Field(int, default=2500, min=50),
+    "min_instance_spread": Field(float, default=0.1, min=0.0, doc="median nearest-neighbour centre distance (m)"),
+    "max_instances_per_category": Field(int, default=12, min=1),
+    "complete_categories": Field(bool, default=True, doc="drop a whole category when one instance is dropped"),
+    "complete_depth": Field(bool, default=True, doc="grow boxes along the view direction (amodal prior)"),
+    "snap_to_support": Field(bool, default=True),
+    "keep_truncated_contacts": Field(bool, default=False,
+                                     doc="geometric depth: keep objects cut by the bottom edge (contact unseen)"),
+    "min_objects": Field(int, default=2, min=1),
+    "max_objects": Field(int, default=40, min=1),
+}
+
+
+def unit_key(root: str | Path, image_id: str) -> str:
+    return f"{KEY_PREFIX}{Path(root).resolve()}{KEY_SEP}{image_id}"
+
+
+def parse_key(key: str) -> tuple[str, str]:
+    if not key.startswith(KEY_PREFIX) or KEY_SEP not in key:
+        raise DropUnit("bad_unit_key", key)
+    root, iid = key[len(KEY_PREFIX):].rsplit(KEY_SEP, 1)
+    return root, iid
+
+
+@lru_cache(maxsize=4)
+def _estimator(name: str, options: tuple):
+    from refspatial_gen.depth import get_estimator
+
+    return get_estimator(name, dict(options))
+
+
+def estimator_from_config(cfg: dict[str, Any]):
+    d = dict(cfg.get("depth") or {"estimator": "geometric"})
+    name = d.pop("estimator")
+    return name, _estimator(name, tuple(sorted((k, tuple(v) if isinstance(v, list) else v) for k, v in d.items())))
+
+
+def decode_rgb(path: Path) -> np.ndarray:
+    """Strict decode (a truncated JPEG is an error, not a grey half image)."""
+    from PIL import Image
+
+    if not path.is_file():
+        raise DropUnit("image_missing", str(path.name))
+    try:
+        with Image.open(path) as im:
+            im.load()
+            rgb = np.asarray(im.convert("RGB"), dtype=np.uint8)
+    except (OSError, ValueError, SyntaxError) as e:  # PIL raises these for corrupt/truncated files
+        raise DropUnit("image_undecodable", f"{path.name}: {e}") from e
+    return np.ascontiguousarray(rgb)
+
+
+def _stuff_kind(name: str) -> str | None:
+    n = name.lower()
+    if n.startswith(GROUND_STUFF_PREFIXES):
+        return "ground"
+    if n.startswith(SUPPORT_STUFF_PREFIXES):
+        return "support"
+    return None
+
+
+def _surface_box(world_pts: np.ndarray, top_z: float) -> Box3D | None:
+    import cv2
+
+    if len(world_pts) < 10:
+        return None
+    xy = world_pts[:, :2]
+    lo, hi = np.percentile(xy, [2, 98], axis=0)
+    xy = xy[np.all((xy >= lo) & (xy <= hi), axis=1)]
+    if len(xy) < 10:
+        return None
+    (cx, cy), (w, h), ang = cv2.minAreaRect(xy.astype(np.float32))
+    if w <= 0 or h <= 0:
+        return None
+    return Box3D(np.array([cx, cy, top_z - 0.01]), np.array([w, h, 0.02]), rot_z(np.deg2rad(ang)))
+
+
+class ImageSource:
+    """Annotated 2D photos lifted to 3D. See docs/image.md."""
+
+    name = "image"
+    CONFIG_FIELDS = CONFIG_FIELDS
+
+    def unit_keys(self, config: dict[str, Any], scenes: int | None, input_path: str | None) -> list[str]:
+        if not input_path:
+            raise ValueError("the image source needs an input folder (recipe `input:` or --input)")
+        cfg = _with_defaults(config)
+        coll = load_collection(input_path, cfg["format"], cfg["annotations"], cfg["images_dir"])
+        keys = [unit_key(coll.root, iid) for iid in coll.ids()]
+        return keys if scenes is None else keys[:scenes]
+
+    def load(self, unit_key: str, rng: np.random.Generator, config: dict[str, Any]) -> list[Frame]:
+        root, iid = parse_key(unit_key)
+        cfg = _with_defaults(config)
+        coll = load_collection(root, cfg["format"], cfg["annotations"], cfg["images_dir"])
+        rec = coll.images.get(iid)
+        if rec is None:
+            raise DropUnit("unknown_image", f"{iid} not in {root}")
+        return [build_frame(coll, rec, rng, cfg)]
+
+
+def _with_defaults(config: dict[str, Any] | None) -> dict[str, Any]:
+    cfg = {k: f.default for k, f in CONFIG_FIELDS.items()}
+    cfg.update({k: v for k, v in (config or {}).items() if v is not None})
+    return cfg
+
+
+def build_frame(coll: Collection, rec: ImageRecord, rng: np.random.Generator, cfg: dict[str, Any],
+                timings: dict[str, float] | None = None) -> Frame:
+    """One annotated photo -> one Frame (or DropUnit)."""
+    from refspatial_gen.depth import CameraPrior
+    from refspatial_gen.sources.image.gravity import GravityEstimate, estimate_gravity, world_from_cam
+    from refspatial_gen.sources.image.lift import LiftParams, lift_points
+
+    cfg = _with_defaults(cfg)
+    tm = timings if timings is not None else {}
+    t0 = time.perf_counter()
+    rgb = decode_rgb(rec.file)
+    H, W = rgb.shape[:2]
+    if (rec.width is not None and rec.width != W) or (rec.height is not None and rec.height != H):
+        raise DropUnit("image_size_mismatch", f"{rec.file.name}: decoded {W}x{H}, annotation says {rec.width}x{rec.height}")
+    tm["decode"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    intr: Intrinsics = resolve_intrinsics(cfg["intrinsics"], rec.file, W, H, cfg["hfov_deg"], rec.intrinsics)
+    pan = read_panoptic_ids(rec.panoptic_png, W, H, rec.image_id) if rec.panoptic_png is not None else None
+    cands: list[F.Candidate] = []
+    crowd: set[str] = set()
+    ground = np.zeros((H, W), bool)
+    support_stuff: list[tuple[str, np.ndarray]] = []
+    wanted = set(cfg["categories"]) if cfg["categories"] else None
+    ignored: dict[str, int] = {}
+    for ann in rec.annotations:
+        mask, is_seg = annotation_mask(ann, rec, W, H, pan)  # raises DropUnit for out-of-image annotations
+        if not ann.isthing:
+            kind = _stuff_kind(ann.category)
+            if kind == "ground":
+                ground |= mask
+            elif kind == "support":
+                support_stuff.append((ann.category, mask))
+            continue
+        if ann.iscrowd:
+            crowd.add(ann.category)
+            continue
+        if wanted is not None and ann.category not in wanted:
+            ignored[ann.category] = ignored.get(ann.category, 0) + 1
+            continue
+        bb = ann.bbox if not rec.meta.get("normalised_boxes") else (ann.bbox[0] * W, ann.bbox[1] * H, ann.bbox[2] * W, ann.bbox[3] * H)
+        c = F.Candidate(ann.ann_id, ann.category, mask, tuple(float(x) for x in bb), is_seg)
+        area = int(mask.sum())
+        if area < cfg["min_mask_area"] or area < cfg["min_mask_fraction"] * W * H:
+            F.drop(c, "too_small")
+        cands.append(c)
+    F.resolve_overlaps(cands)
+    for c in cands:
+        if c.reason is None and int(c.mask.sum()) < cfg["min_mask_area"]:
+            F.drop(c, "too_small")
+    if cfg["complete_categories"]:
+        F.complete_categories(cands, crowd)
+    live = [c for c in cands if c.reason is None]
+    if len(live) < cfg["min_objects"]:
+        raise DropUnit("too_few_objects", f"{rec.image_id}: {len(live)} usable annotated objects before depth")
+    tm["annotations"] = time.perf_counter() - t0
+
+    # ---- depth
+    t0 = time.perf_counter()
+    est_name, est = estimator_from_config(cfg)
+    dopts = cfg.get("depth") or {}
+    # the camera prior: the depth section's own camera_height/pitch_deg win over the source-level prior
+    cam_h = float(dopts.get("camera_height") or cfg["camera_height"])
+    pitch = float(np.deg2rad(dopts["pitch_deg"] if dopts.get("pitch_deg") is not None else cfg["camera_pitch_deg"]))
+    depth_path = None
+    if est_name == "provided":
+        depth_path = str(rec.depth_file if rec.depth_file is not None else est.resolve_path(rec.file))
+    ids = {id(c): k + 1 for k, c in enumerate(live)}
+    prior = CameraPrior(W, H, intr.fx, intr.fy, intr.cx, intr.cy, cam_h, pitch,
+                        depth_path=depth_path, depth_scale=rec.meta.get("depth_scale"),
+                        masks=[(ids[id(c)], c.mask) for c in live],
+                        categories={ids[id(c)]: c.category for c in live}, ground_mask=ground if ground.any() else None)
+    res = est.estimate(rgb, prior)
+    depth = np.asarray(res.depth_m, np.float32)
+    if depth.shape != (H, W):
+        raise DropUnit("depth_size_mismatch", f"{rec.image_id}: depth {depth.shape} vs image {(H, W)}")
+    if not res.is_metric:
+        raise DropUnit("depth_not_metric", f"{rec.image_id}: {res.origin} gives relative depth only")
+    depth = np.where(np.isfinite(depth) & (depth > 0), depth, 0.0).astype(np.float32)
+    tm["depth"] = time.perf_counter() - t0
+    t_lift = time.perf_counter()
+    for c in live:
+        note = res.meta.get("objects", {}).get(str(ids[id(c)]))
+        if note is not None:
+            c.provenance["contact"] = note.get("contact")
+            if note.get("truncated"):
+                c.provenance["contact_truncated"] = True
+                if not cfg["keep_truncated_contacts"]:
+                    F.drop(c, "contact_not_visible")
+            if note.get("contact") == "none":
+                F.drop(c, note.get("reason", "no_ground_contact"))
+
+    # ---- gravity and world frame
+    things = np.zeros((H, W), bool)
+    for c in cands:
+        things |= c.mask
+    grav: GravityEstimate
+    mode = cfg["gravity"]
+    if mode == "auto":
+        mode = "prior" if est_name == "geometric" else "plane"
+    prior_up = prior.up_cam()
+    if mode == "plane":
+        st = max(1, int(round(np.sqrt(H * W / 20000.0))))
+        vs, us = np.mgrid[0:H:st, 0:W:st]
+        z = depth[::st, ::st]
+        ok = (z > 0) & ~things[::st, ::st]
+        pts = np.stack([(us[ok] - intr.cx) * z[ok] / intr.fx, (vs[ok] - intr.cy) * z[ok] / intr.fy, z[ok]], axis=1)
+        g = estimate_gravity(pts, rng, prior_up, cfg["max_tilt_deg"])
+        if g is None:
+            grav = GravityEstimate(prior_up, False, "unknown", None, detail={"why": "no horizontal plane found"})
+        else:
+            grav = g
+            grav.detail["pixels"] = (us[ok], vs[ok])
+    elif mode == "prior":
+        grav = GravityEstimate(prior_up, True, "prior", cam_h,
+                               detail={"pitch_deg": round(float(np.rad2deg(pitch)), 4), "roll_deg": 0.0})
+    else:
+        grav = GravityEstimate(prior_up, False, "unknown", None, detail={"why": "gravity: none"})
+    T = world_from_cam(grav.up_cam, grav.camera_height)
+    cam = Camera(W, H, intr.fx, intr.fy, intr.cx, intr.cy, T, gravity_known=grav.known)
+    cam_xy = cam.position[:2]
+    support_z = [float(cam.position[2] - pl.d) for pl in grav.planes]
+
+    # ---- lifting
+    params = LiftParams(max_points=cfg["max_points_per_object"], min_points=cfg["min_points"],
+                        min_valid_fraction=cfg["min_valid_depth_fraction"], complete_depth=cfg["complete_depth"],
+                        snap_distance=0.25 if cfg["snap_to_support"] else 0.0)
+    for c in live:
+        if c.reason is not None:
+            continue
+        ys, xs = np.nonzero(c.mask)
+        zz = depth[ys, xs]
+        ok = zz > 0
+        if ok.sum() < params.min_points or ok.mean() < params.min_valid_fraction:
+            F.drop(c, "low_valid_depth")
+            continue
+        ys, xs, zz = ys[ok], xs[ok], zz[ok]
+        step = max(1, int(np.ceil(len(zz) / params.max_points)))
+        sel = np.arange(0, len(zz), step)
+        pc = cam.backproject(xs[sel], ys[sel], zz[sel])
+        world = cam.cam_to_world(pc)
+        pix_scale = float(np.median(zz[sel])) / intr.fx * np.sqrt(step)
+        out = lift_points(world, cam_xy, pix_scale, params, support_z)
+        if isinstance(out, str):
+            F.drop(c, out)
+            continue
+        c.box = out.box
+        c.provenance.update({k: v for k, v in out.notes.items()})
+        c.provenance["points"] = out.points_used
+        if not c.segmentation and est_name != "geometric":
+            # a box annotation: the visible mask is the box pixels whose 3D point lies on the object
+            allw = cam.cam_to_world(cam.backproject(xs, ys, zz))
+            vis = out.box.contains(allw, pad=0.03)
+            m = np.zeros((H, W), bool)
+            m[ys[vis], xs[vis]] = True
+            if m.sum() < cfg["min_mask_area"]:
+                F.drop(c, "no_cluster")
+                continue
+            c.mask = m
+            c.provenance["mask"] = "box_refined_by_depth"
+        else:
+            c.provenance["mask"] = "segmentation" if c.segmentation else "box"
+    F.instances_not_spread(cands, cfg["min_instance_spread"])
+    F.too_many_instances(cands, cfg["max_instances_per_category"])
+    if cfg["complete_categories"]:
+        F.complete_categories(cands, crowd)
+    final = [c for c in cands if c.reason is None]
+    if len(final) > cfg["max_objects"]:
+        raise DropUnit("too_many_objects", f"{rec.image_id}: {len(final)} objects > max_objects")
+    if len(final) < cfg["min_objects"]:
+        raise DropUnit("too_few_objects", f"{rec.image_id}: {len(final)} objects after lifting "
+                                          f"(dropped: {F.drop_counts(cands)})")
+
+    # ---- frame
+    objects: list[ObjectInstance] = []
+    for k, c in enumerate(final):
+        ys, xs = np.nonzero(c.mask)
+        bbox2d = (float(xs.min()), float(ys.min()), float(xs.max() + 1), float(ys.max() + 1))
+        prov = {"source": "image", "format": coll.format, "annotation_id": c.ann_id,
+                "depth": res.origin, **c.provenance}
+        objects.append(ObjectInstance(id=k + 1, category=c.category, box=c.box, mask=RLE.encode(c.mask),
+                                      bbox2d=bbox2d, visible_fraction=1.0, provenance=prov))
+    surfaces = _surfaces(grav, cam, depth, ground, support_stuff, final, objects, res, est_name)
+    tm["lift"] = time.perf_counter() - t_lift
+    grav_meta = {"origin": grav.origin, "known": grav.known,
+                 "camera_height": None if grav.camera_height is None else round(float(grav.camera_height), 4),
+                 **{k: v for k, v in grav.detail.items() if k != "pixels"}}
+    meta = {
+        "image_id": rec.image_id, "image_file": rec.file.name, "annotation_format": coll.format,
+        "intrinsics": intr.meta(), "depth": {"origin": res.origin, "is_metric": res.is_metric,
+                                            **{k: v for k, v in res.meta.items() if k != "objects"}},
+        "gravity": grav_meta, "dropped_objects": F.drop_counts(cands),
+        "dropped_object_list": [{"annotation_id": c.ann_id, "category": c.category, "reason": c.reason}
+                                for c in cands if c.reason is not None],
+        "crowd_categories": sorted(crowd), "ignored_categories": dict(sorted(ignored.items())),
+    }
+    fid = f"image:{coll.root.name}/{rec.image_id}"
+    return Frame(fid, rgb, depth, cam, objects, surfaces, source="image", scene_id=fid, meta=_jsonable(meta))
+
+
+def _surfaces(grav, cam: Camera, depth: np.ndarray, ground: np.ndarray, support_stuff, final, objects, res,
+              est_name: str) -> list[SupportSurface]:
+    """Named horizontal support surfaces only: a plane is named by the object or stuff it lies on (a
+    single instance of a support category, or panoptic table/floor stuff) or, when it is the lowest plane
+    at least 0.9 m under the camera, 'the floor'. Unnamed planes only serve gravity."""
+    out: list[SupportSurface] = []
+    H, W = depth.shape
+    if est_name == "geometric" or not grav.planes:
+        if ground.any() and grav.known and est_name == "geometric":
+            ys, xs = np.nonzero(ground & (depth > 0))
+            if len(ys) > 50:
+                step = max(1, len(ys) // 4000)
+                pts = cam.cam_to_world(cam.backproject(xs[::step], ys[::step], depth[ys[::step], xs[::step]]))
+                b = _surface_box(pts, 0.0)
+                if b is not None:
+                    out.append(SupportSurface("ground", "floor", b, None, "the ground"))
+        return out
+    us, vs = grav.detail.get("pixels", (None, None))
+    if us is None:
+        return out
+    cats = [c.category for c in final]
+    lowest = min(range(len(grav.planes)), key=lambda i: grav.planes[i].d * -1)
+    for i, pl in enumerate(grav.planes):
+        pu, pv = us[pl.inliers], vs[pl.inliers]
+        top = float(cam.position[2] - pl.d)
+        name, kind, oid = None, None, None
+        for o, c in zip(objects, final):
+            if c.category in SUPPORT_CATEGORIES and cats.count(c.category) == 1:
+                m = o.mask.decode()
+                if m[pv, pu].mean() > 0.5:
+                    name, kind, oid = f"the {c.category.replace('_', ' ')}", "object", o.id
+                    break
+        if name is None:
+            for sname, m in support_stuff:
+                if m[pv, pu].mean() > 0.5:
+                    name, kind = f"the {sname.split('-')[0]}", "table"
+                    break
+        if name is None and i == lowest and pl.d >= 0.9:
+            name, kind = "the floor", "floor"
+        if name is None:
+            continue
+        zz = depth[pv, pu]
+        pts = cam.cam_to_world(cam.backproject(pu, pv, zz))
+        b = _surface_box(pts, top)
+        if b is not None:
+            out.append(SupportSurface(f"plane{i}", kind, b, oid, name))
+    return out
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.floating, float)):
+        return round(float(x), 6)
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, np.bool_):
+        return bool(x)
+    return x
