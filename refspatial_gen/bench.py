@@ -1,0 +1,164 @@
+"""`make bench`: throughput figures of every stage, measured on this machine (never asserted in tests).
+
+Sections: the simulated pipeline end to end with a per-stage breakdown and peak memory; QA generation
+from cached scene graphs; the image source per image; streaming reads vs. WebDataset; and the run
+executor's scaling from 1 to 2 workers and its memory when the number of scenes grows 10x.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import shutil
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_RECIPE = ROOT / "recipes" / "default.yaml"
+SHARED = Path(os.environ.get("REFSPATIAL_SHARED_DATA", ROOT.parent / "shared" / "data"))
+
+
+def _peak_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def bench_sim(n_scenes: int, work: Path) -> dict[str, Any]:
+    """The simulated pipeline in one process: layout, physics, render, graph, QA, write."""
+    from refspatial_gen.graph import build_graph
+    from refspatial_gen.qa import generate_qa
+    from refspatial_gen.recipe import load_recipe
+    from refspatial_gen.run.plan import unit_rng
+    from refspatial_gen.shards.writer import ShardWriter
+    from refspatial_gen.sources.sim import generate
+    from refspatial_gen.core.errors import DropUnit
+    from refspatial_gen.core.model import Sample
+
+    recipe = load_recipe(DEFAULT_RECIPE)
+    spec = next(s for s in recipe.sources if s.kind == "sim")
+    t: dict[str, float] = {}
+    frames_n = qa_n = dropped = 0
+    writer = ShardWriter(work / "bench-sim.mcap", image_format=recipe.shards["image_format"])
+    generate("sim:warmup", unit_rng(0, "warmup"), spec.config)  # renderer and catalog warm-up
+    t_all = time.perf_counter()
+    for i in range(n_scenes):
+        key = f"sim:{i:06d}"
+        rng = unit_rng(recipe.seed, key)
+        try:
+            frames = generate(key, rng, spec.config, timings=t)
+        except DropUnit:
+            dropped += 1
+            continue
+        t0 = time.perf_counter()
+        graphs = [build_graph(f, recipe.graph) for f in frames]
+        t1 = time.perf_counter()
+        qa = generate_qa(frames, graphs, rng, recipe.qa)
+        t2 = time.perf_counter()
+        writer.write(Sample(key, frames, graphs, qa, key, {"source": "sim"}))
+        t3 = time.perf_counter()
+        for k, v in (("graph", t1 - t0), ("qa", t2 - t1), ("write", t3 - t2)):
+            t[k] = t.get(k, 0.0) + v
+        frames_n += len(frames)
+        qa_n += len(qa)
+    writer.finish()
+    wall = time.perf_counter() - t_all
+    return {"scenes": n_scenes, "dropped": dropped, "frames": frames_n, "qa_pairs": qa_n, "seconds": round(wall, 2),
+            "frames_per_s": round(frames_n / wall, 2), "qa_per_s": round(qa_n / wall, 1),
+            "ms_per_frame": {k: round(1000 * v / max(frames_n, 1), 1) for k, v in t.items()},
+            "peak_rss_mb": round(_peak_mb(), 1), "size": "%dx%d" % (spec.config.get("width", 640), spec.config.get("height", 480))}
+
+
+def bench_qa(seconds: float) -> dict[str, Any]:
+    from refspatial_gen.qa.bench import qa_throughput
+
+    return qa_throughput(None, seconds)
+
+
+def bench_image() -> dict[str, Any]:
+    from refspatial_gen.sources.image.bench import per_image_ms
+
+    folder = SHARED / "coco_tiny_train2017"
+    if not folder.is_dir():
+        return {"skipped": f"{folder} not found"}
+    return per_image_ms(str(folder))
+
+
+def bench_stream(shard_dir: Path, work: Path) -> dict[str, Any]:
+    from refspatial_gen.shards.bench import stream_vs_webdataset
+
+    return stream_vs_webdataset(shard_dir, work_dir=work / "wds")
+
+
+def bench_scaling(scenes: int, work: Path) -> dict[str, Any]:
+    """Executor scaling 1 -> 2 workers, and per-worker peak memory for `scenes` vs 10x `scenes` (toy source)."""
+    from refspatial_gen.recipe import load_recipe
+    from refspatial_gen.run.executor import RecipeRef, run_plan
+
+    out: dict[str, Any] = {}
+    ref = RecipeRef(str(DEFAULT_RECIPE), None, scenes, None)
+    recipe = load_recipe(DEFAULT_RECIPE, scenes=scenes)
+    walls = {}
+    for w in (1, 2):
+        d = work / f"scale-w{w}"
+        res = run_plan(recipe, ref, d, workers=w, progress=False, fresh=True)
+        walls[w] = res["run_log"]["wall_seconds"]
+        out[f"workers_{w}"] = {"wall_s": walls[w], "qa_per_s": res["run_log"]["qa_per_s"],
+                               "peak_rss_mb_per_worker": res["run_log"]["peak_rss_mb_per_worker"]}
+        shutil.rmtree(d)
+    out["speedup_1_to_2"] = round(walls[1] / walls[2], 2)
+    mem = {}
+    for n in (scenes, scenes * 10):
+        d = work / f"mem-{n}"
+        r = load_recipe(DEFAULT_RECIPE, scenes=n)
+        res = run_plan(r, RecipeRef(str(DEFAULT_RECIPE), None, n, None), d, workers=2, progress=False, fresh=True)
+        mem[n] = res["run_log"]["peak_rss_mb_per_worker"]
+        shutil.rmtree(d)
+    out["peak_rss_mb_per_worker_by_scenes"] = {str(k): v for k, v in mem.items()}
+    out["memory_growth_10x"] = round(mem[scenes * 10] / mem[scenes], 3)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m refspatial_gen.bench", description=__doc__)
+    ap.add_argument("--scenes", type=int, default=24, help="scenes for the simulated pipeline")
+    ap.add_argument("--scale-scenes", type=int, default=8, help="scenes for the scaling run (memory uses 10x)")
+    ap.add_argument("--only", nargs="*", default=None, choices=["sim", "qa", "image", "stream", "scale"])
+    ap.add_argument("--json", default=None, help="also write the figures to this file")
+    args = ap.parse_args(argv)
+    sections = args.only or ["sim", "qa", "image", "stream", "scale"]
+    figures: dict[str, Any] = {"machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.python_version()}"}
+    work = Path(tempfile.mkdtemp(prefix="refspatial-bench-"))
+    try:
+        for name in sections:
+            t0 = time.perf_counter()
+            if name == "sim":
+                figures["sim"] = bench_sim(args.scenes, work)
+            elif name == "qa":
+                figures["qa"] = bench_qa(5.0)
+            elif name == "image":
+                figures["image"] = bench_image()
+            elif name == "stream":
+                shard_dir = work / "stream"
+                from refspatial_gen.shards.bench import make_toy_shards
+
+                make_toy_shards(shard_dir)
+                figures["stream"] = bench_stream(shard_dir, work)
+            elif name == "scale":
+                figures["scale"] = bench_scaling(args.scale_scenes, work)
+            print(f"== {name} ({time.perf_counter() - t0:.1f} s)\n{json.dumps(figures[name], indent=2)}", flush=True)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    if args.json:
+        Path(args.json).write_text(json.dumps(figures, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
