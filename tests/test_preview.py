@@ -16,6 +16,7 @@ from refspatial_gen.run.preview import (
     answer_points,
     point_checks,
     render_preview,
+    reservoir,
     reservoir_pick,
     write_gallery,
 )
@@ -200,23 +201,49 @@ def test_render_preview_unknown_frame_is_an_error():
 
 
 # ------------------------------------------------------------------------------------------------ gallery
-def test_reservoir_pick_is_seeded_uniform_and_bounded():
-    picks = reservoir_pick(_stream(3), 5, seed=1)
-    again = reservoir_pick(_stream(3), 5, seed=1)
+def test_reservoir_pick_is_seeded_and_bounded():
+    stream = list(_stream(3))
+    picks = reservoir_pick(stream, 5, seed=1)
+    again = reservoir_pick(iter(stream), 5, seed=1)
     assert [p.order for p, _ in picks] == [p.order for p, _ in again]
     assert len(picks) == 5 and len({p.order for p, _ in picks}) == 5
     assert [p.order for p, _ in picks] == sorted(p.order for p, _ in picks)
     for p, s in picks:
         assert s.sample_id == p.sample_id and s.qa[p.qa_index].qa_id == p.qa_id
-    assert len(reservoir_pick(_stream(1), 50, seed=0)) == 4  # fewer QA pairs than asked: all of them
-    assert reservoir_pick(_stream(1), 0, seed=0) == []
-    # roughly uniform: over many seeds, every one of the 12 QA pairs is picked about 5/12 of the time
+        assert p.source == f"shard-{int(p.sample_id[1:]):05d}.mcap"
+    assert len(reservoir_pick(stream[:1], 50, seed=0)) == 4  # fewer QA pairs than asked: all of them
+    assert reservoir_pick(stream, 0, seed=0) == []
+
+
+def test_reservoir_is_uniform_and_holds_at_most_n():
     counts = np.zeros(12)
-    stream = list(_stream(3))
-    for seed in range(200):
-        for p, _ in reservoir_pick(stream, 5, seed):
-            counts[p.order] += 1
-    assert counts.min() > 200 * 5 / 12 * 0.6 and counts.max() < 200 * 5 / 12 * 1.4
+    for seed in range(400):
+        picked = reservoir(range(12), 5, seed)
+        assert [t for t, _ in picked] == [v for _, v in picked] == sorted(v for _, v in picked)
+        for t, _ in picked:
+            counts[t] += 1
+    expected = 400 * 5 / 12  # every item equally likely, late ones too
+    assert counts.min() > 0.8 * expected and counts.max() < 1.2 * expected
+
+    class Watch:
+        alive = 0
+
+        def __init__(self):
+            Watch.alive += 1
+
+        def __del__(self):
+            Watch.alive -= 1
+
+    peak = 0
+
+    def gen():
+        nonlocal peak
+        for _ in range(300):
+            yield Watch()
+            peak = max(peak, Watch.alive)
+
+    assert len(reservoir(gen(), 4, seed=0)) == 4
+    assert peak <= 4 + 2  # the n kept, the new candidate and at most one in flight
 
 
 def test_write_gallery_files_links_and_escaping(tmp_path):
