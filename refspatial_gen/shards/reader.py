@@ -23,88 +23,56 @@ class ShardError(ValueError):
         super().__init__(f"{self.path}: {reason}")
 
 
-def iter_raw(path: Path | str, *, require_footer: bool = True, validate_crcs: bool = True,
+def iter_raw(path: Path | str, *, require_footer: bool = True, validate_crcs: bool = False,
              keep_topic: Callable[[str], bool] | None = None) -> Iterator[RawSample]:
     """Yield each sample's messages grouped by sequence number, in file order.
 
     With `require_footer=False` (salvage), stops quietly at the first damaged record and yields only
     complete samples; otherwise a damaged or truncated file raises ShardError after the last good sample.
     `keep_topic` limits which messages' bytes are kept (others are counted for completeness only).
+    `validate_crcs` checks each chunk's CRC (sha256 against index.json is the main integrity check).
     """
-    from mcap.exceptions import McapError
-    from mcap.records import Channel, Footer, Message
-    from mcap.stream_reader import StreamReader
+    from refspatial_gen.shards.mcapscan import ScanError, scan
 
     path = Path(path)
-    try:
-        f = open(path, "rb")
-    except OSError as e:
-        raise ShardError(path, f"cannot open: {e.strerror or e}") from None
-    with f:
-        reader = StreamReader(f, validate_crcs=validate_crcs, record_size_limit=1 << 31)
-        channels: dict[int, str] = {}
-        cur_seq: int | None = None
-        cur: dict[str, bytes] = {}
-        footer = False
-        it = reader.records
-        while True:
-            try:
-                rec = next(it)
-            except StopIteration:
+    if not path.is_file():
+        raise ShardError(path, "no such file" if not path.exists() else "not a regular file")
+    cur_seq: int | None = None
+    cur: dict[str, bytes] = {}
+    footer = False
+    it = scan(path, validate_crcs=validate_crcs)
+    while True:
+        try:
+            rec = next(it)
+        except StopIteration:
+            break
+        except ScanError as e:
+            if not require_footer and e.kind != "not_mcap":
                 break
-            except (McapError, ValueError, EOFError, OSError, struct_error(), MemoryError, IndexError) as e:
-                if not require_footer:
-                    break
-                raise ShardError(path, _explain(e)) from None
-            if isinstance(rec, Channel):
-                channels[rec.id] = rec.topic
-            elif isinstance(rec, Message):
-                topic = channels.get(rec.channel_id)
-                if topic is None:
-                    if not require_footer:
-                        break
-                    raise ShardError(path, f"message on unknown channel {rec.channel_id}")
-                if rec.sequence != cur_seq:
-                    if cur_seq is not None and (require_footer or is_complete(cur)):
-                        yield _finish_group(path, cur_seq, cur)
-                    cur_seq, cur = rec.sequence, {}
-                if keep_topic is None or topic == "/sample" or keep_topic(topic):
-                    cur[topic] = rec.data
-                else:
-                    cur[topic] = b""  # counted for completeness, not kept
-            elif isinstance(rec, Footer):
-                footer = True
-        if cur_seq is not None:
-            if footer or is_complete(cur):
+            hint = "; try `refspatial-gen shards salvage`" if e.kind == "truncated" else ""
+            raise ShardError(path, f"{e.kind.replace('_', ' ') if e.kind != 'not_mcap' else 'invalid'}: {e}{hint}") from None
+        except OSError as e:
+            raise ShardError(path, f"cannot read: {e.strerror or e}") from None
+        if rec is None:
+            footer = True
+            continue
+        topic, seq, data = rec
+        if seq != cur_seq:
+            if cur_seq is not None and (require_footer or is_complete(cur)):
                 yield _finish_group(path, cur_seq, cur)
-        if require_footer and not footer:
-            raise ShardError(path, "truncated: the file ends before the MCAP footer (unfinished write?); "
-                                   "try `refspatial-gen shards salvage`")
+            cur_seq, cur = seq, {}
+        cur[topic] = data if keep_topic is None or topic == "/sample" or keep_topic(topic) else b""
+    if cur_seq is not None and (footer or is_complete(cur)):
+        yield _finish_group(path, cur_seq, cur)
+    if require_footer and not footer:
+        raise ShardError(path, "truncated: the file ends before the MCAP footer (unfinished write?); "
+                               "try `refspatial-gen shards salvage`")
 
 
 def _finish_group(path: Path, seq: int, msgs: dict[str, bytes]) -> RawSample:
     if not is_complete(msgs):
         raise ShardError(path, f"sample with sequence {seq} is incomplete ({len(msgs)} messages)")
     return RawSample(seq, msgs)
-
-
-def struct_error():
-    import struct
-
-    return struct.error
-
-
-def _explain(e: BaseException) -> str:
-    name = type(e).__name__
-    if name == "InvalidMagic":
-        return "not an MCAP file (bad magic bytes)"
-    if name == "EndOfFile" or isinstance(e, EOFError):
-        return "truncated: the file ends in the middle of a record (unfinished write?)"
-    if name == "CRCValidationError":
-        return f"corrupt: a chunk's CRC does not match ({e})"
-    if name == "RecordLengthLimitExceeded":
-        return "corrupt: a record claims an impossible length (random bytes or damaged file)"
-    return f"unreadable ({name}: {e})"
 
 
 def read_samples(path: Path | str) -> Iterator[Sample]:
