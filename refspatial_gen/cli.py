@@ -14,6 +14,7 @@ COMMAND_MODULES = [
     "refspatial_gen.run.preview_commands",
     "refspatial_gen.run.commands",
     "refspatial_gen.shards.commands",
+    "refspatial_gen.graph.commands",
 ]
 
 

@@ -1,0 +1,115 @@
+"""Named thresholds of every relation, with a tabletop and a room preset.
+
+Why: every decision in the graph rests on a comparison with a margin; the margin is where a relation is
+undecided and must not be asked about. Values start from the RefSpatial authors' published choices and
+are scaled to the scene (a tabletop wants centimetres, a room decimetres). A recipe may override any
+field through the graph config (`thresholds: {name: value}`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields, replace
+from typing import Any
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    # camera / image directions
+    lateral_margin: float  # m, camera-x difference of centres for left/right
+    depth_margin: float  # m, nearest-face depth difference for front/behind
+    image_margin: float  # fraction of image height/width, for above/below (image)
+    vertical_margin: float  # m, centre height difference for above/below (world)
+    stack_tolerance: float  # m, "A's bottom at B's top" counts as above/on within this
+    # sizes (a comparison needs the larger to exceed the smaller by max(abs, rel * larger))
+    height_margin_abs: float  # m
+    size_margin_rel: float  # fraction, for height and width
+    volume_margin_rel: float  # fraction, for volume
+    width_margin_abs: float  # m
+    # distances
+    distance_margin: float  # m, close/far difference of surface distances
+    touch_distance: float  # m, touching below this ...
+    touch_band: float  # m, ... not touching above touch_distance + touch_band
+    next_to_distance: float  # m
+    far_from_distance: float  # m
+    far_from_band: float  # m, undecided within +- this of far_from_distance
+    quantity_tolerance: float  # fraction, accepted relative error of a metric answer
+    # containment / between
+    inside_fraction: float  # > this fraction of A's volume inside B's box = inside
+    inside_band: float  # undecided within +- this of inside_fraction
+    between_t_margin: float  # fraction of the B-C segment kept clear at each end
+    between_corridor: float  # corridor half-width as a fraction of |BC| (plus the anchors' half widths)
+    # orientation
+    rotation_margin: float  # rad, below this the turn direction is undecided
+    facing_cone: float  # rad, half-angle of the facing cone
+    facing_margin: float  # rad
+    angle_margin: float  # rad, angle between fronts: reported tolerance
+    sector_margin: float  # rad, object-frame 90-degree sectors: undecided within this of a boundary
+    # support surfaces
+    support_gap: float  # m, a support's top within this of the object's bottom
+    support_overlap: float  # fraction of the object's footprint over the surface
+    corner_reach: float  # m, object within this of a surface corner
+    edge_band: float  # m, object within this of a surface edge
+    surface_band_margin: float  # m, corner/edge undecided band
+    # free space
+    free_radius_min: float  # m
+    free_min_area: float  # m^2
+    free_clearance: float  # m, obstacle footprints grown by this
+    free_grid: float  # m, sampling step for visibility
+    visibility_tolerance: float  # m, depth agreement with the depth map
+    corner_size: float  # m, side of a corner free region
+    edge_width: float  # m, width of an edge free region
+    # phrases
+    anchor_distance_margin: float  # m, "closest to the X" must win by this
+
+    def to_json(self) -> dict[str, float]:
+        return {k: round(float(v), 6) for k, v in sorted(asdict(self).items())}
+
+
+TABLETOP = Thresholds(
+    lateral_margin=0.02, depth_margin=0.02, image_margin=0.02, vertical_margin=0.03, stack_tolerance=0.01,
+    height_margin_abs=0.01, size_margin_rel=0.10, volume_margin_rel=0.20, width_margin_abs=0.01,
+    distance_margin=0.02, touch_distance=0.01, touch_band=0.01, next_to_distance=0.08, far_from_distance=0.30,
+    far_from_band=0.05, quantity_tolerance=0.15,
+    inside_fraction=0.30, inside_band=0.10, between_t_margin=0.10, between_corridor=0.35,
+    rotation_margin=0.035, facing_cone=0.5236, facing_margin=0.0873, angle_margin=0.0873, sector_margin=0.1745,
+    support_gap=0.05, support_overlap=0.70, corner_reach=0.15, edge_band=0.08, surface_band_margin=0.03,
+    free_radius_min=0.20, free_min_area=0.03, free_clearance=0.01, free_grid=0.01, visibility_tolerance=0.025,
+    corner_size=0.20, edge_width=0.10,
+    anchor_distance_margin=0.03,
+)
+
+ROOM = Thresholds(
+    lateral_margin=0.10, depth_margin=0.10, image_margin=0.02, vertical_margin=0.10, stack_tolerance=0.05,
+    height_margin_abs=0.05, size_margin_rel=0.10, volume_margin_rel=0.20, width_margin_abs=0.05,
+    distance_margin=0.10, touch_distance=0.05, touch_band=0.05, next_to_distance=0.50, far_from_distance=1.00,
+    far_from_band=0.15, quantity_tolerance=0.15,
+    inside_fraction=0.30, inside_band=0.10, between_t_margin=0.10, between_corridor=0.35,
+    rotation_margin=0.035, facing_cone=0.5236, facing_margin=0.0873, angle_margin=0.0873, sector_margin=0.1745,
+    support_gap=0.10, support_overlap=0.50, corner_reach=0.50, edge_band=0.30, surface_band_margin=0.10,
+    free_radius_min=0.50, free_min_area=0.10, free_clearance=0.05, free_grid=0.04, visibility_tolerance=0.025,
+    corner_size=0.60, edge_width=0.30,
+    anchor_distance_margin=0.10,
+)
+
+# Sources whose boxes come from noisy reconstructions: contact is only known to within centimetres
+# (the RefSpatial authors used 10 cm on CA-1M scans).
+NOISY_SOURCES = ("scan", "image")
+NOISY_TOUCH_DISTANCE = 0.05
+NOISY_TOUCH_BAND = 0.05
+
+PRESETS = {"tabletop": TABLETOP, "room": ROOM}
+
+
+def thresholds_for(scale: str, source: str, overrides: dict[str, Any] | None = None) -> Thresholds:
+    """The preset for `scale`, adjusted for the source's noise, with recipe overrides applied."""
+    t = PRESETS[scale]
+    if source.split(":")[0] in NOISY_SOURCES:
+        t = replace(t, touch_distance=max(t.touch_distance, NOISY_TOUCH_DISTANCE),
+                    touch_band=max(t.touch_band, NOISY_TOUCH_BAND))
+    if overrides:
+        names = {f.name for f in fields(Thresholds)}
+        bad = sorted(set(overrides) - names)
+        if bad:
+            raise ValueError(f"unknown threshold(s) {bad}; known: {sorted(names)}")
+        t = replace(t, **{k: float(v) for k, v in overrides.items()})
+    return t

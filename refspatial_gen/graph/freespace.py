@@ -1,0 +1,281 @@
+"""Free-space regions on support surfaces, and the checker every free-space answer must pass.
+
+Regions (shared/spec/relations.md): for an anchor standing on a surface, the 90-degree sectors left of /
+right of / in front of / behind it (as the viewer sees them; radius half-diagonal + max(diagonal,
+free_radius_min)); the area between two anchors on the same surface (hull of their footprints); the
+corners and edges of the surface, named from the viewer. Obstacle footprints (every object standing on
+or over the surface, grown by a clearance) are subtracted, the region is cut to the part of the surface
+the camera's image covers, points are kept only when the depth map sees the surface there (2.5 cm), and
+a region needs a minimum visible area. The answer point is the visible sample farthest inside the region,
+re-checked after rounding to RefSpatial's three decimals with `check_free_point`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import shapely
+from shapely.geometry import MultiPolygon, Polygon
+from shapely.ops import unary_union
+
+from refspatial_gen.core.mask import denormalise_point, normalise_point
+from refspatial_gen.core.model import Frame, FreeSpaceRegion, SceneGraph
+from refspatial_gen.graph.scene import SceneGeom, box_footprint
+from refspatial_gen.graph.support import get_supports, surface_polygon
+
+MAX_SAMPLES = 3000  # grid points per region (the grid coarsens for large regions)
+POINT_TRIES = 12
+OBSTACLE_HEIGHT = 0.005  # an object reaching this far above the surface blocks it
+MAX_BETWEEN_GAP = {"tabletop": 0.6, "room": 3.0}
+MIN_BETWEEN_GAP_FACTOR = 2.0  # the gap must exceed this many clearances
+
+
+# ----------------------------------------------------------------------------- shared geometry
+def gravity_rotation(graph_or_geom) -> np.ndarray:
+    if isinstance(graph_or_geom, SceneGeom):
+        return graph_or_geom.gravity.rotation
+    g = graph_or_geom.meta.get("gravity", {})
+    return np.array(g["rotation"], float) if "rotation" in g else np.eye(3)
+
+
+def pixel_to_plane(frame: Frame, G: np.ndarray, px: float, py: float, z: float) -> np.ndarray | None:
+    """Gravity-world point where the ray through pixel centre (px, py) meets the plane at height z."""
+    cam = frame.camera
+    d_cam = np.array([(px + 0.5 - cam.cx) / cam.fx, (py + 0.5 - cam.cy) / cam.fy, 1.0])
+    R = G @ cam.world_from_cam[:3, :3]
+    o = G @ cam.world_from_cam[:3, 3]
+    d = R @ d_cam
+    if abs(d[2]) < 1e-12:
+        return None
+    t = (z - o[2]) / d[2]
+    if t <= 0:
+        return None
+    return o + t * d
+
+
+def obstacle_footprints(frame: Frame, G: np.ndarray, z: float, gap: float) -> list[np.ndarray]:
+    """Footprints of objects standing on or over the plane at height z (bottom within `gap` of it)."""
+    out = []
+    for o in frame.objects:
+        from refspatial_gen.core.geometry import Box3D
+
+        b = Box3D(G @ o.box.center, o.box.size, G @ o.box.rotation)
+        lo, hi = b.aabb()
+        if lo[2] <= z + gap and hi[2] > z + OBSTACLE_HEIGHT:
+            out.append(box_footprint(b)[0])
+    return out
+
+
+def check_free_point(frame: Frame, graph: SceneGraph, region: FreeSpaceRegion,
+                     point: tuple[float, float] | None = None) -> list[str]:
+    """Problems with a free-space answer point (the region's own point by default); [] means valid.
+
+    Checks: inside the image; the pixel's ray meets the surface plane in front of the camera; the hit
+    lies on the support surface, inside the region, outside every obstacle footprint; and the depth map
+    agrees with the surface there within the visibility tolerance.
+    """
+    th = graph.meta.get("thresholds", {})
+    tol = float(th.get("visibility_tolerance", 0.025))
+    gap = float(th.get("support_gap", 0.05))
+    p = region.point if point is None else point
+    cam = frame.camera
+    problems = []
+    if not (0.0 <= p[0] < 1.0 and 0.0 <= p[1] < 1.0):
+        return [f"point {p} outside the image"]
+    px, py = denormalise_point(p[0], p[1], cam.width, cam.height)
+    G = gravity_rotation(graph)
+    hit = pixel_to_plane(frame, G, px, py, region.z)
+    if hit is None:
+        return [f"pixel ({px}, {py}) does not see the plane z={region.z:.3f}"]
+    surf = {s.id: s for s in frame.surfaces}.get(region.surface_id)
+    if surf is None:
+        problems.append(f"unknown surface {region.surface_id!r}")
+    else:
+        from refspatial_gen.core.geometry import Box3D
+
+        sb = Box3D(G @ surf.box.center, surf.box.size, G @ surf.box.rotation)
+        if not shapely.contains_xy(Polygon(surface_polygon(sb)), hit[0], hit[1]):
+            problems.append(f"point ({hit[0]:.3f}, {hit[1]:.3f}) is off surface {region.surface_id}")
+    if not shapely.contains_xy(Polygon(region.polygon_xy), hit[0], hit[1]):
+        problems.append("point is outside the region polygon")
+    for fp in obstacle_footprints(frame, G, region.z, gap):
+        if shapely.contains_xy(Polygon(fp), hit[0], hit[1]):
+            problems.append(f"point ({hit[0]:.3f}, {hit[1]:.3f}) lies on an obstacle's footprint")
+            break
+    pw = G.T @ hit
+    z_cam = float(cam.world_to_cam(pw[None])[0, 2])
+    d = float(frame.depth[py, px])
+    if not (d > 0 and abs(d - z_cam) <= tol):
+        problems.append(f"not visible: depth map {d:.3f} m vs surface {z_cam:.3f} m at pixel ({px}, {py})")
+    return problems
+
+
+# ----------------------------------------------------------------------------- region construction
+def _view_polygon(geom: SceneGeom, z: float) -> Polygon | None:
+    """The part of the plane at height z that the image covers."""
+    W, H = geom.W, geom.H
+    k = 12
+    border = ([(x, 0) for x in np.linspace(0, W - 1, k)] + [(W - 1, y) for y in np.linspace(0, H - 1, k)]
+              + [(x, H - 1) for x in np.linspace(W - 1, 0, k)] + [(0, y) for y in np.linspace(H - 1, 0, k)])
+    pts = [pixel_to_plane(geom.frame, geom.gravity.rotation, x, y, z) for x, y in border]
+    pts = [p[:2] for p in pts if p is not None and np.linalg.norm(p - geom.cam_pos_g) < 50.0]
+    if len(pts) < 3:
+        return None
+    return shapely.convex_hull(shapely.MultiPoint(pts))
+
+
+def _largest(g) -> Polygon | None:
+    if g is None or g.is_empty:
+        return None
+    if isinstance(g, Polygon):
+        return g
+    polys = [p for p in getattr(g, "geoms", []) if isinstance(p, Polygon)]
+    if not polys:
+        return None
+    return max(polys, key=lambda p: (round(p.area, 9), p.centroid.x, p.centroid.y))
+
+
+def _wedge(apex: np.ndarray, direction: np.ndarray, radius: float, k: int = 9) -> Polygon:
+    ang = np.arctan2(direction[1], direction[0])
+    a = ang + np.linspace(-np.pi / 4, np.pi / 4, k)
+    arc = apex + radius * np.stack([np.cos(a), np.sin(a)], axis=1)
+    return Polygon(np.vstack([apex, arc]))
+
+
+def _visible_samples(geom: SceneGeom, poly: Polygon, z: float) -> tuple[np.ndarray, float]:
+    """Grid points of `poly` that the camera sees on the plane at height z, and the grid cell size."""
+    step = geom.th.free_grid
+    step = max(step, float(np.sqrt(poly.area / MAX_SAMPLES)))
+    x0, y0, x1, y1 = poly.bounds
+    xs = np.arange(x0 + step / 2, x1, step)
+    ys = np.arange(y0 + step / 2, y1, step)
+    if not len(xs) or not len(ys):
+        return np.zeros((0, 2)), step
+    gx, gy = np.meshgrid(xs, ys, indexing="xy")
+    pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
+    pts = pts[shapely.contains_xy(poly, pts[:, 0], pts[:, 1])]
+    if not len(pts):
+        return pts, step
+    uv, zc = geom.project_world(np.column_stack([pts, np.full(len(pts), z)]))
+    W, H = geom.W, geom.H
+    ok = np.isfinite(uv).all(axis=1) & (zc > 0)
+    u = np.floor(np.where(ok, uv[:, 0], -1)).astype(int)
+    v = np.floor(np.where(ok, uv[:, 1], -1)).astype(int)
+    ok &= (u >= 0) & (u < W) & (v >= 0) & (v < H)
+    d = np.zeros(len(pts))
+    d[ok] = geom.frame.depth[v[ok], u[ok]]
+    ok &= (d > 0) & (np.abs(d - zc) <= geom.th.visibility_tolerance)
+    return pts[ok], step
+
+
+def _region(geom: SceneGeom, graph_stub: SceneGraph, sid: str, kind: str, anchors: tuple, poly: Polygon,
+            z: float, label: str) -> FreeSpaceRegion | None:
+    vis, step = _visible_samples(geom, poly, z)
+    area = len(vis) * step * step
+    if area < geom.th.free_min_area:
+        return None
+    depth_in = shapely.distance(shapely.points(vis), poly.exterior)
+    order = np.argsort(-np.round(depth_in, 6), kind="stable")
+    G = geom.gravity.rotation
+    poly_xy = [(float(x), float(y)) for x, y in np.asarray(poly.exterior.coords)[:-1]]
+    for k in order[:POINT_TRIES]:
+        pw = np.array([vis[k, 0], vis[k, 1], z])
+        uv, _ = geom.project_world(pw[None])
+        p = normalise_point(float(np.floor(uv[0, 0])), float(np.floor(uv[0, 1])), geom.W, geom.H)
+        px, py = denormalise_point(p[0], p[1], geom.W, geom.H)
+        hit = pixel_to_plane(geom.frame, G, px, py, z)
+        if hit is None:
+            continue
+        r = FreeSpaceRegion(sid, kind, tuple(anchors), poly_xy, z, round(area, 6),
+                            (float(hit[0]), float(hit[1]), float(z)), p, label)
+        if not check_free_point(geom.frame, graph_stub, r):
+            return r
+    return None
+
+
+def free_regions(geom: SceneGeom) -> list[FreeSpaceRegion]:
+    """All free-space regions of the frame (cached per geometry)."""
+    if "free_regions" in geom.cache:
+        return geom.cache["free_regions"]
+    out: list[FreeSpaceRegion] = []
+    if geom.world_ok:
+        out = _build(geom)
+    geom.cache["free_regions"] = out
+    return out
+
+
+def _build(geom: SceneGeom) -> list[FreeSpaceRegion]:
+    from refspatial_gen.graph.relations.surface import surface_labels
+
+    th = geom.th
+    supports, roots = get_supports(geom)
+    labels = surface_labels(geom)
+    axes = geom.camera_axes_horizontal()
+    scale = geom.cache.get("scale", "tabletop")
+    G = geom.gravity.rotation
+    meta = {"thresholds": th.to_json(), "gravity": {"rotation": G.tolist()}}
+    stub = SceneGraph(geom.frame.frame_id, [], [], [], meta)
+    out: list[FreeSpaceRegion] = []
+    for s in geom.surfaces:
+        z = s.top_z
+        surf = Polygon(surface_polygon(s.box)).buffer(-th.free_clearance)
+        view = _view_polygon(geom, z)
+        if surf.is_empty or view is None:
+            continue
+        obst = [Polygon(fp).buffer(th.free_clearance) for fp in obstacle_footprints(geom.frame, G, z, th.support_gap)]
+        free = surf.intersection(view)
+        if obst:
+            free = free.difference(unary_union(obst))
+        if free.is_empty:
+            continue
+        on_s = [i for i in np.argsort(geom.ids, kind="stable")
+                if supports[i] is not None and supports[i].kind == "surface" and supports[i].ref == s.id]
+        if axes is not None:
+            right, fwd = axes
+            dirs = (("left_of", -right[:2]), ("right_of", right[:2]), ("in_front_of", -fwd[:2]), ("behind", fwd[:2]))
+            for i in on_s:
+                fp = geom.footprints[i]
+                diag = float(np.linalg.norm(fp[2] - fp[0]))
+                radius = diag / 2 + max(diag, th.free_radius_min)
+                c = geom.centers[i, :2]
+                for kind, d in dirs:
+                    poly = _largest(free.intersection(_wedge(c, d, radius)))
+                    if poly is not None:
+                        r = _region(geom, stub, s.id, kind, (int(geom.ids[i]),), poly, z, "")
+                        if r is not None:
+                            out.append(r)
+        for a_k, i in enumerate(on_s):
+            for j in on_s[a_k + 1:]:
+                gapd = geom.surface_distance[i, j]
+                if gapd < MIN_BETWEEN_GAP_FACTOR * th.free_clearance * 2 or gapd > MAX_BETWEEN_GAP[scale]:
+                    continue
+                hull = shapely.convex_hull(shapely.MultiPoint(np.vstack([geom.footprints[i], geom.footprints[j]])))
+                poly = _largest(free.intersection(hull))
+                if poly is not None:
+                    r = _region(geom, stub, s.id, "between", (int(geom.ids[i]), int(geom.ids[j])), poly, z, "")
+                    if r is not None:
+                        out.append(r)
+        lab = labels.get(s.id, {})
+        spoly = lab.get("polygon")
+        for name, p in sorted(lab.get("corners", {}).items()):
+            k = int(np.argmin(np.linalg.norm(spoly - p, axis=1)))
+            e1 = spoly[(k + 1) % 4] - p
+            e2 = spoly[(k - 1) % 4] - p
+            e1 = e1 / np.linalg.norm(e1) * min(th.corner_size, np.linalg.norm(e1) / 2)
+            e2 = e2 / np.linalg.norm(e2) * min(th.corner_size, np.linalg.norm(e2) / 2)
+            sq = Polygon([p, p + e1, p + e1 + e2, p + e2])
+            poly = _largest(free.intersection(sq))
+            if poly is not None:
+                r = _region(geom, stub, s.id, "corner", (), poly, z, f"{name} corner")
+                if r is not None:
+                    out.append(r)
+        for name, (a, b) in sorted(lab.get("edges", {}).items()):
+            e = (b - a) / np.linalg.norm(b - a)
+            inward = np.array([-e[1], e[0]])
+            w = min(th.edge_width, float(np.linalg.norm(b - a)) / 2)
+            band = Polygon([a, b, b + inward * w, a + inward * w])
+            poly = _largest(free.intersection(band))
+            if poly is not None:
+                r = _region(geom, stub, s.id, "edge", (), poly, z, name)
+                if r is not None:
+                    out.append(r)
+    return out

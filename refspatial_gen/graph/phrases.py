@@ -1,0 +1,171 @@
+"""Unique referring phrases for every object that can have one, shortest first.
+
+Forms (the grammar `resolve.py` parses independently):
+  the {cat} | the {colour} {cat}
+  the {tallest|shortest|biggest|smallest|leftmost|rightmost|nearest|farthest} [{colour}] {cat}
+  the {second|third} [{colour}] {cat} from the {left|right}
+  the {second|third} {nearest|farthest} [{colour}] {cat}
+  the [{colour}] {cat} {closest to|farthest from|on} {anchor phrase}
+A phrase is emitted only when the decisions behind it are decided (outside every margin) against every
+other object it could be confused with; objects of the same category are the candidates, including
+objects that are hidden (they are still in the scene).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from refspatial_gen.graph.relations import directions, sizes
+from refspatial_gen.graph.relations.common import FALSE, TRUE
+from refspatial_gen.graph.scene import SceneGeom
+from refspatial_gen.graph.support import get_supports
+
+ORDINAL_WORDS = {2: "second", 3: "third"}
+MAX_PHRASES = 8
+
+
+def display_category(cat: str) -> str:
+    return cat.replace("_", " ").strip().lower()
+
+
+def _extreme(codes: np.ndarray, i: int, group: list[int]) -> bool:
+    """i beats every other member of the group (codes[i, j] == TRUE for all j)."""
+    return all(codes[i, j] == TRUE for j in group if j != i)
+
+
+def _rank(codes: np.ndarray, i: int, group: list[int]) -> int | None:
+    """1-based rank of i when every comparison with the group is decided (codes[j, i] TRUE = j ahead)."""
+    ahead = 0
+    for j in group:
+        if j == i:
+            continue
+        c = codes[i, j]
+        if c == TRUE:
+            continue
+        if c == FALSE and codes[j, i] == TRUE:
+            ahead += 1
+            continue
+        return None
+    return ahead + 1
+
+
+def _group_phrases(geom: SceneGeom, group: list[int], noun: str, out: dict[int, list[tuple[int, str]]]) -> None:
+    """Superlatives and ordinals within `group` (all sharing `noun`, e.g. "red cup")."""
+    if len(group) < 2:
+        return
+    lc = directions.matrices(geom, "left")[1]
+    fc = directions.matrices(geom, "front")[1]
+    xs = geom.cam_centers[group, 0]
+    ds = geom.near_depth[group]
+    lateral_first = np.ptp(xs) >= np.ptp(ds)  # the axis of largest spread gets priority
+    pri_x, pri_d = (0, 1) if lateral_first else (1, 0)
+    for i in group:
+        if geom.world_ok:
+            tc, bc = sizes._tall(geom)[1], sizes._big(geom)[1]
+            if _extreme(tc, i, group):
+                out[i].append((2, f"the tallest {noun}"))
+            if _extreme(tc.T, i, group):
+                out[i].append((2, f"the shortest {noun}"))
+            if _extreme(bc, i, group):
+                out[i].append((2, f"the biggest {noun}"))
+            if _extreme(bc.T, i, group):
+                out[i].append((2, f"the smallest {noun}"))
+        r = _rank(lc, i, group)
+        if r is not None:
+            k = len(group)
+            if r == 1:
+                out[i].append((pri_x, f"the leftmost {noun}"))
+            if r == k:
+                out[i].append((pri_x, f"the rightmost {noun}"))
+            if k >= 3 and r in ORDINAL_WORDS and r != k:
+                out[i].append((pri_x, f"the {ORDINAL_WORDS[r]} {noun} from the left"))
+            if k >= 3 and (k - r + 1) in ORDINAL_WORDS and r != 1:
+                out[i].append((pri_x, f"the {ORDINAL_WORDS[k - r + 1]} {noun} from the right"))
+        r = _rank(fc, i, group)
+        if r is not None:
+            k = len(group)
+            if r == 1:
+                out[i].append((pri_d, f"the nearest {noun}"))
+            if r == k:
+                out[i].append((pri_d, f"the farthest {noun}"))
+            if k >= 3 and r in ORDINAL_WORDS and r != k:
+                out[i].append((pri_d, f"the {ORDINAL_WORDS[r]} nearest {noun}"))
+            if k >= 3 and (k - r + 1) in ORDINAL_WORDS and r != 1:
+                out[i].append((pri_d, f"the {ORDINAL_WORDS[k - r + 1]} farthest {noun}"))
+
+
+def make_phrases(geom: SceneGeom) -> list[list[str]]:
+    """Phrases per object position, shortest first (ties: axis of largest spread, then alphabetical)."""
+    n = geom.n
+    cats = [display_category(c) for c in geom.categories]
+    cols = geom.colours
+    out: dict[int, list[tuple[int, str]]] = {i: [] for i in range(n)}
+    by_cat: dict[str, list[int]] = {}
+    for i in range(n):
+        by_cat.setdefault(cats[i], []).append(i)
+    simple: dict[int, str] = {}  # anchor phrases: category or colour + category
+    for cat, members in sorted(by_cat.items()):
+        if len(members) == 1:
+            out[members[0]].append((0, f"the {cat}"))
+            simple[members[0]] = f"the {cat}"
+        for i in members:
+            if cols[i] is not None and sum(cols[j] == cols[i] for j in members) == 1:
+                out[i].append((0, f"the {cols[i]} {cat}"))
+                simple.setdefault(i, f"the {cols[i]} {cat}")
+        _group_phrases(geom, members, cat, out)
+        for col in sorted({c for c in (cols[i] for i in members) if c is not None}):
+            sub = [i for i in members if cols[i] == col]
+            # a colour subgroup phrase must also beat same-category objects whose colour is unknown
+            if len(sub) >= 2 and all(cols[i] is not None for i in members):
+                _group_phrases(geom, sub, f"{col} {cat}", out)
+    _anchor_phrases(geom, by_cat, cats, simple, out)
+    result = []
+    for i in range(n):
+        seen, items = set(), []
+        for pri, p in sorted(out[i], key=lambda t: (len(t[1].split()), t[0], t[1])):
+            if p not in seen:
+                seen.add(p)
+                items.append(p)
+        result.append(items[:MAX_PHRASES])
+    return result
+
+
+def _anchor_phrases(geom: SceneGeom, by_cat: dict[str, list[int]], cats: list[str], simple: dict[int, str],
+                    out: dict[int, list[tuple[int, str]]]) -> None:
+    if not geom.world_ok:
+        return
+    d = geom.surface_distance
+    m = geom.th.anchor_distance_margin
+    supports, _ = get_supports(geom)
+    surf_names = {s.id: (s.name or f"the {s.kind}") for s in geom.surfaces}
+    for cat, members in sorted(by_cat.items()):
+        if len(members) < 2:
+            continue
+        for a in sorted(simple):
+            if cats[a] == cat:
+                continue
+            da = d[members, a]
+            for k, i in enumerate(members):
+                others = np.delete(da, k)
+                if da[k] + m < others.min():
+                    out[i].append((3, f"the {cat} closest to {simple[a]}"))
+                if da[k] - m > others.max():
+                    out[i].append((3, f"the {cat} farthest from {simple[a]}"))
+        for k, i in enumerate(members):
+            s = supports[i]
+            if s is None:
+                continue
+            if s.kind == "object":
+                j = geom.index[s.ref]
+                if j not in simple:
+                    continue
+                anchor = simple[j]
+                # every other member must be clearly off that object
+                near = [o for o in members if o != i and (geom.footprint_overlap[o, j] > 0 or geom.footprint_overlap[j, o] > 0)
+                        and abs(geom.lo[o, 2] - geom.hi[j, 2]) <= 2 * geom.th.support_gap]
+            else:
+                anchor = surf_names[s.ref]
+                near = [o for o in members if o != i and (supports[o] is None or supports[o].ref == s.ref
+                                                          or supports[o].kind == "object")]
+            if not near:
+                out[i].append((3, f"the {cat} on {anchor}"))

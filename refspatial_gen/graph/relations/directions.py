@@ -1,0 +1,79 @@
+"""Viewer-centred directions: left/right and front/behind (camera frame), above/below in the image.
+
+Why these rules: "left" is judged on 3D centres in the camera frame (RefSpatial), but a person checks it
+in the image; when perspective makes the two disagree the relation is left undecided rather than asked.
+"Front" uses nearest-face depth, and is undecided when centre depths order the objects the other way.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from refspatial_gen.core.model import RelationFact
+from refspatial_gen.graph.relations.base import Relation, register
+from refspatial_gen.graph.relations.common import UNDECIDED, cached, decide_matrix, pair_evaluator, pair_facts
+
+
+def _lateral(geom):
+    x = geom.cam_centers[:, 0]
+    u = geom.img_centroid[:, 0]
+    v = x[None, :] - x[:, None]  # v[i, j] > 0: i is left of j
+    du = u[None, :] - u[:, None]
+    codes = decide_matrix(v, geom.th.lateral_margin)
+    disagree = (np.sign(du) != np.sign(v)) | (np.abs(du) < 0.5 * geom.th.image_margin)
+    codes[disagree] = UNDECIDED
+    return v, codes, geom.th.lateral_margin
+
+
+def _depthwise(geom):
+    d = geom.near_depth
+    v = d[None, :] - d[:, None]  # v[i, j] > 0: i nearer than j
+    c = geom.center_depth
+    vc = c[None, :] - c[:, None]
+    codes = decide_matrix(v, geom.th.depth_margin)
+    codes[np.sign(vc) != np.sign(v)] = UNDECIDED
+    return v, codes, geom.th.depth_margin
+
+
+def _image_vertical(geom):
+    y = geom.img_centroid[:, 1]
+    v = y[None, :] - y[:, None]  # v[i, j] > 0: i higher in the image than j
+    return v, decide_matrix(v, geom.th.image_margin), geom.th.image_margin
+
+
+_GROUPS = {"left": _lateral, "front": _depthwise, "above_image": _image_vertical}
+
+
+def matrices(geom, rel: str):
+    return cached(geom, "dir:" + rel, _GROUPS[rel])
+
+
+def _m(rel: str):
+    return lambda geom: matrices(geom, rel)
+
+
+def facts(geom) -> list[RelationFact]:
+    out = []
+    for rel in _GROUPS:
+        v, codes, m = matrices(geom, rel)
+        out += pair_facts(rel, geom, v, codes, m)
+    return out
+
+
+register(Relation("left", "directions", "cam", 2, "camera-x of B's centre minus A's (m)", "lateral_margin, image_margin",
+                  "A's centre is left of B's in the camera frame by more than the margin, and the image agrees",
+                  evaluate=pair_evaluator(_m("left"), "left")))
+register(Relation("right", "directions", "cam", 2, "camera-x of A's centre minus B's (m)", "lateral_margin, image_margin",
+                  "mirror of left: A's centre is right of B's", mirror_of="left", evaluate=pair_evaluator(_m("left"), "left", "right")))
+register(Relation("front", "directions", "cam", 2, "nearest-face depth of B minus A's (m)", "depth_margin",
+                  "A's nearest face is nearer the camera than B's by the margin (centre depths agree)",
+                  evaluate=pair_evaluator(_m("front"), "front")))
+register(Relation("behind", "directions", "cam", 2, "nearest-face depth of A minus B's (m)", "depth_margin",
+                  "mirror of front: A is farther from the camera than B", mirror_of="front",
+                  evaluate=pair_evaluator(_m("front"), "front", "behind")))
+register(Relation("above_image", "directions", "img", 2, "image-y of B's mask centroid minus A's (fraction of height)",
+                  "image_margin", "A's 2D centre is higher in the image than B's", evaluate=pair_evaluator(_m("above_image"), "above_image")))
+register(Relation("below_image", "directions", "img", 2, "image-y of A's mask centroid minus B's (fraction of height)",
+                  "image_margin", "mirror of above (image): A's 2D centre is lower in the image", mirror_of="above_image",
+                  evaluate=pair_evaluator(_m("above_image"), "above_image", "below_image")))
+

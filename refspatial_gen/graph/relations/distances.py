@@ -1,0 +1,137 @@
+"""Metric distances: distance, touching, far from, next to (pairs), close/far to an anchor (derived),
+and depth from the camera (per object).
+
+Why surface distances: "the cup next to the plate" is about the gap between them, not their centres
+(a long table's centre is far from a cup standing at its end). Centre distances are kept in node
+attributes for questions that ask for them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from refspatial_gen.core.model import RelationFact
+from refspatial_gen.graph.relations.base import Relation, decide, register
+from refspatial_gen.graph.relations.common import (TRUE, UNDECIDED, band_matrix, cached, fact, pair_facts, pos)
+
+G = ("gravity",)
+
+
+def _distance(geom):
+    def f(g):
+        d = g.surface_distance
+        codes = np.full(d.shape, TRUE, dtype=np.int8)
+        return d, codes, np.maximum(0.01, g.th.quantity_tolerance * d)
+    return cached(geom, "dist:distance", f)
+
+
+def _touching(geom):
+    def f(g):
+        d = g.surface_distance
+        th = g.th
+        return d, band_matrix(d, th.touch_distance, th.touch_distance + th.touch_band), th.touch_band
+    return cached(geom, "dist:touching", f)
+
+
+def _far_from(geom):
+    def f(g):
+        d = g.surface_distance
+        th = g.th
+        # far_from holds when d is large: reuse band_matrix on the negated distance
+        codes = band_matrix(-d, -(th.far_from_distance + th.far_from_band), -(th.far_from_distance - th.far_from_band))
+        return d, codes, th.far_from_band
+    return cached(geom, "dist:far_from", f)
+
+
+def _next_to(geom):
+    def f(g):
+        d = g.surface_distance
+        th = g.th
+        codes = band_matrix(d, th.next_to_distance, th.next_to_distance + th.distance_margin)
+        # side by side means sharing a height range; a stack is "on", not "next to": undecided
+        lo, hi = g.lo[:, 2], g.hi[:, 2]
+        common = np.minimum(hi[:, None], hi[None, :]) - np.maximum(lo[:, None], lo[None, :])
+        smaller = np.minimum(g.height[:, None], g.height[None, :])
+        codes[(codes == TRUE) & (common < 0.3 * smaller)] = UNDECIDED
+        return d, codes, th.distance_margin
+    return cached(geom, "dist:next_to", f)
+
+
+def _sym_eval(matrices, rel: str):
+    def evaluate(geom, a, b) -> RelationFact:
+        i, j = pos(geom, a), pos(geom, b)
+        v, codes, m = matrices(geom)
+        mm = float(np.broadcast_to(np.asarray(m, float), v.shape)[i, j])
+        return fact(rel, (a, b), codes[i, j] if i != j else UNDECIDED, v[i, j], mm)
+    return evaluate
+
+
+def close_value(d_ac: float, d_bc: float, margin: float) -> tuple[bool | None, float]:
+    """close(A, B, C): A is closer to C than B is; value = d(B, C) - d(A, C)."""
+    v = d_bc - d_ac
+    return decide(v, margin), v
+
+
+def _close_eval(mirror: bool):
+    def evaluate(geom, a, b, c) -> RelationFact:
+        if len({a, b, c}) < 3:
+            raise ValueError("close/far need three different objects")
+        i, j, k = pos(geom, a), pos(geom, b), pos(geom, c)
+        if mirror:
+            i, j = j, i
+        d = geom.surface_distance
+        holds, v = close_value(d[i, k], d[j, k], geom.th.distance_margin)
+        return RelationFact("far" if mirror else "close", (a, b, c), holds, v, geom.th.distance_margin)
+    return evaluate
+
+
+def _depth_eval(geom, a) -> RelationFact:
+    i = pos(geom, a)
+    return _depth_fact(geom, i)
+
+
+def _depth_fact(geom, i: int) -> RelationFact:
+    """Depth of an object: median metric depth of its visible pixels. Undecided when the object spans
+    more depth than the accepted error (a long sofa seen end-on has no single distance)."""
+    v = geom.mask_depth[i]
+    if not np.isfinite(v):
+        v = float(geom.center_depth[i])
+        m = geom.th.quantity_tolerance * max(v, 1e-6)
+        return RelationFact("depth", (int(geom.ids[i]),), None, v, m)
+    m = geom.th.quantity_tolerance * v
+    ok = geom.mask_depth_spread[i] <= 2 * m
+    return RelationFact("depth", (int(geom.ids[i]),), True if ok else None, float(v), float(m))
+
+
+def facts(geom) -> list[RelationFact]:
+    out = [_depth_fact(geom, i) for i in np.argsort(geom.ids, kind="stable")]
+    if not geom.world_ok:
+        return out
+    out += pair_facts("distance", geom, *_distance(geom))
+    out += pair_facts("touching", geom, *_touching(geom), only={TRUE, UNDECIDED})
+    out += pair_facts("far_from", geom, *_far_from(geom), only={TRUE, UNDECIDED})
+    out += pair_facts("next_to", geom, *_next_to(geom), only={TRUE, UNDECIDED})
+    return out
+
+
+register(Relation("close", "distances", "world", 3, "d(B, C) minus d(A, C), surface distances (m)", "distance_margin",
+                  "A is closer to the anchor C than B is (nearest-surface distances)", storage="derived", needs=G,
+                  evaluate=_close_eval(False)))
+register(Relation("far", "distances", "world", 3, "d(A, C) minus d(B, C), surface distances (m)", "distance_margin",
+                  "mirror of close: A is farther from the anchor C than B is", storage="derived", mirror_of="close",
+                  needs=G, evaluate=_close_eval(True)))
+register(Relation("depth", "distances", "cam", 1, "median metric depth of A's visible pixels (m)", "quantity_tolerance",
+                  "the metric distance from the camera to the object (undecided when it spans more depth than the tolerance)",
+                  storage="unary", evaluate=_depth_eval))
+register(Relation("distance", "distances", "world", 2, "minimum surface-to-surface distance (m)", "quantity_tolerance",
+                  "metric distance between two objects' nearest surfaces (centre distance in node attributes)",
+                  storage="symmetric", needs=G, evaluate=_sym_eval(_distance, "distance")))
+register(Relation("touching", "distances", "world", 2, "minimum surface distance (m)", "touch_distance, touch_band",
+                  "the objects' surfaces are within the touch distance (source-dependent: 1 cm sim, 5 cm scans)",
+                  storage="sparse", needs=G, evaluate=_sym_eval(_touching, "touching")))
+register(Relation("far_from", "distances", "world", 2, "minimum surface distance (m)", "far_from_distance, far_from_band",
+                  "the objects' nearest surfaces are farther apart than the scene-scaled distance (0.3 m tabletop, 1 m room)",
+                  storage="sparse", needs=G, evaluate=_sym_eval(_far_from, "far_from")))
+register(Relation("next_to", "distances", "world", 2, "minimum surface distance (m)", "next_to_distance, distance_margin",
+                  "the objects stand side by side (sharing a height range) with a small gap", storage="sparse",
+                  needs=G, spec=False, evaluate=_sym_eval(_next_to, "next_to")))

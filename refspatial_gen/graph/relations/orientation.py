@@ -1,0 +1,212 @@
+"""Orientation: camera rotations to face an object, angles between fronts, facing / facing away, and
+directions in an anchor's own frame ("left of the laptop from the laptop's point of view").
+
+Why horizontal fronts: a front direction is about where an object "looks" on the ground plane; a front
+that points up or down (|z| > 0.7) has no horizontal meaning and leaves these relations undecided.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from refspatial_gen.core.model import RelationFact
+from refspatial_gen.graph.relations.base import FRONT_SOURCES, Relation, register
+from refspatial_gen.graph.relations.common import FALSE, TRUE, UNDECIDED, cached, fact, pos
+
+UP = np.array([0.0, 0.0, 1.0])
+MAX_FRONT_Z = 0.7
+SECTORS = ("obj_front", "obj_left", "obj_behind", "obj_right")  # centred on 0, 90, 180, -90 degrees
+
+
+def horizontal_fronts(geom) -> np.ndarray:
+    """(n, 2) unit horizontal fronts (NaN where unknown or too vertical)."""
+    f = geom.fronts.copy()
+    bad = ~geom.has_front | (np.abs(f[:, 2]) > MAX_FRONT_Z)
+    h = f[:, :2]
+    nrm = np.linalg.norm(h, axis=1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        h = h / nrm
+    h[bad] = np.nan
+    return h
+
+
+# ------------------------------------------------------------------ camera rotations (unary)
+def _rotation_h(geom, i: int) -> RelationFact:
+    x, _, z = geom.cam_centers[i]
+    v = float(np.arctan2(x, z))
+    m = geom.th.rotation_margin
+    return RelationFact("rotation_horizontal", (int(geom.ids[i]),), True if abs(v) > m and z > 0 else None, v, m)
+
+
+def _rotation_v(geom, i: int) -> RelationFact:
+    """Pitch in a gravity-levelled camera: elevation of the object's direction over the camera's
+    horizontal forward axis. Undecided without gravity or when the camera looks straight down."""
+    m = geom.th.rotation_margin
+    axes = geom.camera_axes_horizontal() if geom.world_ok else None
+    if axes is None:
+        _, y, z = geom.cam_centers[i]
+        return RelationFact("rotation_vertical", (int(geom.ids[i]),), None, float(np.arctan2(-y, z)), m)
+    _, fwd = axes
+    d = geom.centers[i] - geom.cam_pos_g
+    v = float(np.arctan2(d @ UP, d @ fwd))
+    ok = abs(v) > m and (d @ fwd) > 0
+    return RelationFact("rotation_vertical", (int(geom.ids[i]),), True if ok else None, v, m)
+
+
+# ------------------------------------------------------------------ angle between fronts (symmetric)
+def angle_between(h1, h2) -> float | None:
+    """Angle (rad) between two horizontal unit fronts, None when either is unknown."""
+    h1, h2 = np.asarray(h1, float), np.asarray(h2, float)
+    if not (np.isfinite(h1).all() and np.isfinite(h2).all()):
+        return None
+    return float(np.arccos(np.clip(h1 @ h2, -1.0, 1.0)))
+
+
+def _angle(geom, i: int, j: int) -> RelationFact:
+    h = horizontal_fronts(geom)
+    m = geom.th.angle_margin
+    v = angle_between(h[i], h[j])
+    return RelationFact("angle", (int(geom.ids[i]), int(geom.ids[j])), None if v is None else True, v or 0.0, m)
+
+
+# ------------------------------------------------------------------ facing / facing away (ordered)
+def rays_hit_polygons(origins: np.ndarray, dirs: np.ndarray, polys: np.ndarray, pad: float) -> np.ndarray:
+    """(n, m): does the 2D ray origins[i] + t dirs[i] (t > 0) meet convex CCW polygon j grown by `pad`?"""
+    a = polys
+    e = np.roll(polys, -1, axis=1) - polys
+    nrm = np.stack([e[..., 1], -e[..., 0]], axis=-1) / (np.linalg.norm(e, axis=-1, keepdims=True) + 1e-12)  # outward
+    num = np.einsum("mkd,mkd->mk", a, nrm)[None, :, :] - np.einsum("id,mkd->imk", origins, nrm) + pad  # (n,m,k)
+    den = np.einsum("id,mkd->imk", dirs, nrm)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = num / den
+    par = np.abs(den) < 1e-12
+    tmax = np.where(den > 1e-12, t, np.inf).min(axis=2)
+    tmin = np.maximum(np.where(den < -1e-12, t, -np.inf).max(axis=2), 1e-9)
+    blocked = np.any(par & (num < 0), axis=2)
+    return (tmin <= tmax) & ~blocked
+
+
+def _facing_matrix(geom, sign: float):
+    def f(g):
+        n = g.n
+        h = horizontal_fronts(g) * sign
+        th = g.th
+        ok = np.isfinite(h).all(axis=1)
+        hh = np.where(ok[:, None], h, 0.0)
+        d = g.centers[None, :, :2] - g.centers[:, None, :2]  # (i, j): from i to j
+        dist = np.linalg.norm(d, axis=2)
+        cosang = np.einsum("ijd,id->ij", d, hh) / np.maximum(dist, 1e-9)
+        v = np.arccos(np.clip(cosang, -1, 1))
+        hit_in = rays_hit_polygons(g.centers[:, :2], hh, g.footprints, -0.005)
+        hit_out = rays_hit_polygons(g.centers[:, :2], hh, g.footprints, 0.02)
+        codes = np.full((n, n), UNDECIDED, dtype=np.int8)
+        codes[(v > th.facing_cone + th.facing_margin) & ~hit_out] = FALSE
+        codes[(v < th.facing_cone - th.facing_margin) | hit_in] = TRUE
+        codes[g.surface_distance <= 1e-6] = UNDECIDED  # overlapping boxes: no direction between them
+        codes[~ok, :] = UNDECIDED
+        np.fill_diagonal(codes, UNDECIDED)
+        v[~ok, :] = np.pi
+        return v, codes, th.facing_margin
+    return cached(geom, f"orient:facing{sign:+.0f}", f)
+
+
+# ------------------------------------------------------------------ object-frame directions
+def bearings(centers_xy: np.ndarray, fronts_h: np.ndarray) -> np.ndarray:
+    """theta[i, j]: bearing of i's centre in j's own frame (0 = j's front, +pi/2 = j's left); NaN
+    where j has no horizontal front."""
+    left = np.stack([-fronts_h[:, 1], fronts_h[:, 0]], axis=1)  # up x front
+    d = centers_xy[:, None, :] - centers_xy[None, :, :]  # (i, j): from j to i
+    return np.arctan2(np.einsum("ijd,jd->ij", d, left), np.einsum("ijd,jd->ij", d, fronts_h))
+
+
+def sector_codes(theta, margin: float, outside) -> dict[str, np.ndarray]:
+    """Decisions (int8 arrays shaped like theta) for each of the four 90-degree sectors. `outside` is
+    False where A overlaps the anchor (no direction)."""
+    theta = np.asarray(theta, float)
+    out = {}
+    for k, rel in enumerate(SECTORS):
+        c = (k * np.pi / 2 + np.pi) % (2 * np.pi) - np.pi
+        off = np.abs((theta - c + np.pi) % (2 * np.pi) - np.pi)  # 0..pi from the sector's centre
+        codes = np.full(theta.shape, UNDECIDED, dtype=np.int8)
+        codes[off < np.pi / 4 - margin] = TRUE
+        codes[off > np.pi / 4 + margin] = FALSE
+        codes[~np.asarray(outside, bool) | ~np.isfinite(theta)] = UNDECIDED
+        out[rel] = codes
+    return out
+
+
+def _sector_matrix(geom):
+    return cached(geom, "orient:sector", lambda g: bearings(g.centers[:, :2], horizontal_fronts(g)))
+
+
+def _sector_fact(geom, i: int, j: int, rel: str) -> RelationFact:
+    theta = _sector_matrix(geom)[i, j]
+    m = geom.th.sector_margin
+    args = (int(geom.ids[i]), int(geom.ids[j]))
+    if i == j or not np.isfinite(theta):
+        return RelationFact(rel, args, None, 0.0, m)
+    outside = geom.surface_distance[i, j] > 1e-6
+    return fact(rel, args, sector_codes(theta, m, outside)[rel], theta, m)
+
+
+# ------------------------------------------------------------------ facts
+def facts(geom) -> list[RelationFact]:
+    order = [int(i) for i in np.argsort(geom.ids, kind="stable")]
+    out = [_rotation_h(geom, i) for i in order]
+    out += [_rotation_v(geom, i) for i in order]
+    if not geom.world_ok:
+        return out
+    fr = [i for i in order if np.isfinite(horizontal_fronts(geom)[i]).all()]
+    for rel, sign in (("facing", 1.0), ("facing_away", -1.0)):
+        v, codes, m = _facing_matrix(geom, sign)
+        for i in fr:
+            for j in order:
+                if i != j and codes[i, j] != FALSE:
+                    out.append(fact(rel, (int(geom.ids[i]), int(geom.ids[j])), codes[i, j], v[i, j], m))
+    return out
+
+
+def _unary_eval(fn):
+    return lambda geom, a: fn(geom, pos(geom, a))
+
+
+def _angle_eval(geom, a, b) -> RelationFact:
+    f = _angle(geom, pos(geom, a), pos(geom, b))
+    return RelationFact("angle", (a, b), f.holds, f.value, f.margin)
+
+
+def _facing_eval(sign: float, rel: str):
+    def evaluate(geom, a, b) -> RelationFact:
+        i, j = pos(geom, a), pos(geom, b)
+        v, codes, m = _facing_matrix(geom, sign)
+        return fact(rel, (a, b), codes[i, j], v[i, j], m)
+    return evaluate
+
+
+def _sector_eval(rel: str):
+    return lambda geom, a, b: _sector_fact(geom, pos(geom, a), pos(geom, b), rel)
+
+
+F = ("gravity", "front")
+register(Relation("rotation_horizontal", "orientation", "cam", 1, "atan2(x, z) of A's centre in the camera frame (rad, + = right)",
+                  "rotation_margin", "angle the camera must yaw to face the object", storage="unary",
+                  evaluate=_unary_eval(_rotation_h)))
+register(Relation("rotation_vertical", "orientation", "cam", 1,
+                  "elevation of A's centre over the levelled camera's forward axis (rad, + = up)", "rotation_margin",
+                  "angle the camera must pitch (in a gravity-levelled camera) to face the object", storage="unary",
+                  needs=("gravity",), evaluate=_unary_eval(_rotation_v)))
+register(Relation("angle", "orientation", "world", 2, "angle between the horizontal front directions (rad)", "angle_margin",
+                  "angle between two objects' front directions", sources=FRONT_SOURCES, storage="derived", needs=F,
+                  evaluate=_angle_eval))
+register(Relation("facing", "orientation", "obj", 2, "angle between A's front and the direction to B (rad)",
+                  "facing_cone, facing_margin",
+                  "B lies within a 30-degree cone around A's front direction, or A's front ray hits B's footprint",
+                  sources=FRONT_SOURCES, storage="sparse", needs=F, evaluate=_facing_eval(1.0, "facing")))
+register(Relation("facing_away", "orientation", "obj", 2, "angle between A's back and the direction to B (rad)",
+                  "facing_cone, facing_margin", "same test as facing with A's back direction: A turns its back to B",
+                  sources=FRONT_SOURCES, storage="sparse", needs=F, evaluate=_facing_eval(-1.0, "facing_away")))
+for _rel, _what in (("obj_front", "in front of"), ("obj_left", "to the left of"), ("obj_behind", "behind"),
+                    ("obj_right", "to the right of")):
+    register(Relation(_rel, "object_frame", "obj", 2, "bearing of A's centre in B's own frame (rad, 0 = B's front, + = B's left)",
+                      "sector_margin", f"A is {_what} B from B's own point of view (90-degree sector around B's front axes)",
+                      sources=FRONT_SOURCES, storage="derived", needs=F, spec=False, evaluate=_sector_eval(_rel)))

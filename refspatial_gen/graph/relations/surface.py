@@ -1,0 +1,139 @@
+"""Support-surface relations: corner and edge (objects near a surface's corner or along one of its
+edges), and free space (answered by regions, see graph/freespace.py).
+
+Why labels depend on the camera: "the far-left corner of the table" is named from the viewer. A corner
+or edge whose name would be ambiguous (a table seen diagonally) gets no label and is never asked about.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from refspatial_gen.core.model import RelationFact
+from refspatial_gen.graph.relations.base import SURFACE_SOURCES, Relation, register
+from refspatial_gen.graph.relations.common import TRUE, UNDECIDED, band_matrix, cached, pos
+from refspatial_gen.graph.support import get_supports, surface_polygon
+
+EDGE_AXIS_TOLERANCE = np.deg2rad(30.0)  # an edge's outward normal within this of a viewer axis gets a name
+CORNER_SEPARATION = 0.15  # corner coordinates must differ from the centre by this share of the extent
+
+
+def surface_labels(geom) -> dict[str, dict]:
+    """{surface id: {"polygon": (4,2), "corners": {label: xy}, "edges": {label: (a, b)}}}."""
+    def f(g):
+        out = {}
+        axes = g.camera_axes_horizontal()
+        for s in g.surfaces:
+            poly = surface_polygon(s.box)
+            entry = {"polygon": poly, "corners": {}, "edges": {}, "z": s.top_z}
+            out[s.id] = entry
+            if axes is None:
+                continue
+            right, fwd = axes
+            c = poly.mean(axis=0)
+            lat, dep = (poly - c) @ right[:2], (poly - c) @ fwd[:2]
+            ext_l, ext_d = np.ptp(lat), np.ptp(dep)
+            ok = (np.abs(lat) > CORNER_SEPARATION * ext_l) & (np.abs(dep) > CORNER_SEPARATION * ext_d)
+            names = [("far" if d > 0 else "near") + "-" + ("right" if l > 0 else "left") for l, d in zip(lat, dep)]
+            if ok.all() and len(set(names)) == 4:
+                entry["corners"] = {names[k]: poly[k] for k in range(4)}
+            for k in range(4):
+                a, b = poly[k], poly[(k + 1) % 4]
+                e = b - a
+                n = np.array([e[1], -e[0]]) / (np.linalg.norm(e) + 1e-12)  # outward normal of a CCW polygon
+                ang = np.arctan2(n @ fwd[:2], n @ right[:2])  # 0 = right, 90 = far, 180 = left, -90 = near
+                for label, centre in (("right edge", 0.0), ("far edge", np.pi / 2), ("left edge", np.pi), ("near edge", -np.pi / 2)):
+                    if abs((ang - centre + np.pi) % (2 * np.pi) - np.pi) < EDGE_AXIS_TOLERANCE:
+                        entry["edges"][label] = (a, b)
+        return out
+    return cached(geom, "surface:labels", f)
+
+
+def _footprint_to_point(fp: np.ndarray, p: np.ndarray) -> float:
+    """Distance from a point to a convex footprint (0 inside)."""
+    a, b = fp, np.roll(fp, -1, axis=0)
+    e = b - a
+    t = np.clip(np.sum((p - a) * e, axis=1) / np.maximum(np.sum(e * e, axis=1), 1e-18), 0, 1)
+    d = np.linalg.norm(p - (a + t[:, None] * e), axis=1).min()
+    inside = np.all(e[:, 0] * (p[1] - a[:, 1]) - e[:, 1] * (p[0] - a[:, 0]) >= 0)
+    return 0.0 if inside else float(d)
+
+
+def _footprint_to_edge(fp: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """Smallest distance from the footprint's vertices to the (infinite) edge line, measured inwards."""
+    e = (b - a) / (np.linalg.norm(b - a) + 1e-12)
+    inward = np.array([-e[1], e[0]])
+    return float(max(0.0, ((fp - a) @ inward).min()))
+
+
+def _corner_edge(geom):
+    """{(rel, object pos, surface id, label): (code, value)} for objects whose support chain ends on a
+    surface with labels; False instances omitted."""
+    def f(g):
+        th = g.th
+        _, roots = get_supports(g)
+        labels = surface_labels(g)
+        out = {}
+        for i in range(g.n):
+            sid = roots[i]
+            if sid is None or sid not in labels:
+                continue
+            fp = g.footprints[i]
+            for lab, p in sorted(labels[sid]["corners"].items()):
+                v = _footprint_to_point(fp, p)
+                code = int(band_matrix(np.array(v), th.corner_reach, th.corner_reach + th.surface_band_margin))
+                out[("corner", i, sid, lab)] = (code, v)
+            for lab, (a, b) in sorted(labels[sid]["edges"].items()):
+                v = _footprint_to_edge(fp, a, b)
+                code = int(band_matrix(np.array(v), th.edge_band, th.edge_band + th.surface_band_margin))
+                out[("edge", i, sid, lab)] = (code, v)
+        return out
+    return cached(geom, "surface:corner_edge", f)
+
+
+def facts(geom) -> list[RelationFact]:
+    if not geom.world_ok:
+        return []
+    th = geom.th
+    out = []
+    items = _corner_edge(geom)
+    for key in sorted(items, key=lambda k: (k[0], int(geom.ids[k[1]]), k[2], k[3])):
+        code, v = items[key]
+        if code in (TRUE, UNDECIDED):
+            m = th.surface_band_margin
+            out.append(RelationFact(key[0], (int(geom.ids[key[1]]), key[2], key[3]), None if code == UNDECIDED else True, v, m))
+    return out
+
+
+def _eval(rel: str):
+    def evaluate(geom, a, surface_id: str, label: str) -> RelationFact:
+        i = pos(geom, a)
+        code, v = _corner_edge(geom).get((rel, i, surface_id, label), (None, 0.0))
+        if code is None:
+            return RelationFact(rel, (a, surface_id, label), None, 0.0, geom.th.surface_band_margin)
+        return RelationFact(rel, (a, surface_id, label), None if code == UNDECIDED else bool(code == TRUE), v,
+                            geom.th.surface_band_margin)
+    return evaluate
+
+
+def _free_eval(geom, surface_id: str, kind: str, *anchors) -> RelationFact:
+    from refspatial_gen.graph.freespace import free_regions
+
+    for r in free_regions(geom):
+        if r.surface_id == surface_id and r.kind == kind and tuple(r.anchors) == tuple(anchors):
+            return RelationFact("free_space", (surface_id, kind, *anchors), True, r.area, geom.th.free_min_area)
+    return RelationFact("free_space", (surface_id, kind, *anchors), False, 0.0, geom.th.free_min_area)
+
+
+S = ("gravity", "surface")
+register(Relation("corner", "surface", "world", 3, "distance from A's footprint to the labelled corner (m)",
+                  "corner_reach, surface_band_margin",
+                  "A (or a free point) is within reach of a support surface's corner, named from the viewer (e.g. far-left)",
+                  sources=SURFACE_SOURCES, storage="sparse", needs=S, evaluate=_eval("corner")))
+register(Relation("edge", "surface", "world", 3, "inward distance from the labelled edge to A's footprint (m)",
+                  "edge_band, surface_band_margin",
+                  "A (or a free point) lies within a band along one edge of a support surface (e.g. the right edge)",
+                  sources=SURFACE_SOURCES, storage="sparse", needs=S, evaluate=_eval("edge")))
+register(Relation("free_space", "surface", "world", 2, "visible free area of the region (m^2)", "free_min_area, visibility_tolerance",
+                  "a visible point on a support surface not covered by any object footprint (left/right/front/behind of, between, corner, edge)",
+                  sources=SURFACE_SOURCES, storage="region", needs=S, evaluate=_free_eval))
