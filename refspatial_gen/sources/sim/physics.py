@@ -159,6 +159,7 @@ def build_model(desc: SceneDesc, catalog_materials: dict[str, dict[str, float]],
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     spec.visual.global_.offwidth = int(cfg.get("width", 640))
     spec.visual.global_.offheight = int(cfg.get("height", 480))
+    spec.visual.quality.offsamples = 0  # no MSAA: blended edge pixels would corrupt segmentation ids and depth
     spec.visual.quality.shadowsize = int(cfg.get("shadow_size", 0)) or 1024
     ap = desc.appearance
     spec.visual.headlight.ambient = [ap["ambient"]] * 3
