@@ -2,7 +2,7 @@
 
 Visibility rule (the same for every reader): a pixel inside the silhouette of an object's box is
   * visible (in the mask) when the depth map's 3D point lies inside the box (lightly padded, the bottom
-    `floor_margin` trimmed so the floor under a table is not "table");
+    `floor_margin` (at most a quarter of the box height) trimmed so the floor under a table is not "table");
   * occluded when the depth map is more than `occlusion_tolerance` (2.5 cm) nearer than where the ray
     enters the box;
   * see-through otherwise (the box is loose there: background behind a chair's legs).
@@ -176,7 +176,8 @@ def object_visibility(cam: Camera, depth: np.ndarray, box: Box3D, config: dict[s
     x0, y0, x1, y1 = win
     tol = float(cfg(config, "occlusion_tolerance"))
     pad = float(cfg(config, "mask_pad"))
-    trim = float(cfg(config, "floor_margin")) if gravity_known else 0.0
+    # never trim more than a quarter of a flat object's height (a tray is 2-3 cm tall)
+    trim = min(float(cfg(config, "floor_margin")), 0.25 * box.height) if gravity_known else 0.0
     rays = pixel_rays(cam, x0, y0, x1, y1)
     R, o = cam.world_from_cam[:3, :3], cam.world_from_cam[:3, 3]
     d_world = rays @ R.T  # world direction per pixel, scaled so camera z = 1
@@ -201,11 +202,13 @@ def object_visibility(cam: Camera, depth: np.ndarray, box: Box3D, config: dict[s
     inside = close_unknown(inside, sil & (d <= 0))
     mask = np.zeros((cam.height, cam.width), bool)
     mask[y0:y1, x0:x1] = inside
+    claim = np.zeros_like(mask)  # pixels on this object even if trimmed from its mask (its bottom slab)
+    claim[y0:y1, x0:x1] = inside | (valid & inside_box(local, box.size, pad, 0.0, p_world[..., 2], bottom))
     n_in, n_occ, n_thr = int(inside.sum()), int(occluded.sum()), int(through.sum())
     fill = n_in / (n_in + n_thr) if n_in + n_thr else 0.0
     frac_unoccluded = n_in / (n_in + fill * n_occ) if n_in else 0.0
     visible_fraction = frac_unoccluded * in_image_share(cam, box, int(sil.sum()))
-    out = {"mask": mask, "visible_pixels": n_in, "occluded_pixels": n_occ, "see_through_pixels": n_thr,
+    out = {"mask": mask, "claim": claim, "visible_pixels": n_in, "occluded_pixels": n_occ, "see_through_pixels": n_thr,
            "visible_fraction": visible_fraction, "fraction_method": "depth_pixels"}
     if points is not None:
         lp = box.to_local(points)
@@ -303,6 +306,7 @@ def view_to_frame(view: ScanView, config: dict[str, Any]) -> Frame:
         raise DropUnit("blurry", f"variance of Laplacian {score:.1f} < {cfg(config, 'blur_threshold')}")
     objects: list[ObjectInstance] = []
     excluded: list[dict[str, Any]] = []
+    visible: list[tuple[ScanBox, dict[str, Any]]] = []
     for sb in sorted(view.boxes, key=lambda b: b.id):
         pc = cam.world_to_cam(sb.box.corners())
         if np.all(pc[:, 2] <= 0):
@@ -311,10 +315,16 @@ def view_to_frame(view: ScanView, config: dict[str, Any]) -> Frame:
             continue
         vis = object_visibility(cam, depth, sb.box, config, cam.gravity_known, view.points,
                                 float(meta.get("point_spacing_m", 0.0)) * float(cfg(config, "splat_scale")))
-        if vis is None:
-            continue
-        m = vis["mask"]
-        area = int(vis["visible_pixels"])
+        if vis is not None:
+            visible.append((sb, vis))
+    # a pixel whose depth point lies in several boxes (a mug resting in the padded top of a table box)
+    # belongs to the smallest of them: masks are exclusive, like a segmentation
+    owner = np.zeros((cam.height, cam.width), np.int64)
+    for sb, vis in sorted(visible, key=lambda x: (-x[0].box.volume, x[0].id)):
+        owner[vis["claim"]] = sb.id
+    for sb, vis in visible:
+        m = vis["mask"] & (owner == sb.id)
+        area = int(m.sum())
         cat = category_phrase(sb.category)
         if area < int(cfg(config, "min_mask_pixels")) or vis["visible_fraction"] < float(cfg(config, "min_visible_fraction")):
             if area > 0:
@@ -323,7 +333,7 @@ def view_to_frame(view: ScanView, config: dict[str, Any]) -> Frame:
             continue
         ys, xs = np.nonzero(m)
         prov = {"source": "scan", "reader": view.reader, "annotation_id": sb.id, "raw_category": sb.category,
-                "visible_pixels": area, "occluded_pixels": vis["occluded_pixels"],
+                "visible_pixels": area, "pixels_given_to_smaller_boxes": int(vis["visible_pixels"]) - area, "occluded_pixels": vis["occluded_pixels"],
                 "see_through_pixels": vis["see_through_pixels"], "fraction_method": vis["fraction_method"],
                 **sb.provenance}
         objects.append(ObjectInstance(

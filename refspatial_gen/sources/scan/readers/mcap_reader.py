@@ -100,7 +100,7 @@ def _message_at(path: str, topic: str, t: int) -> dict[str, Any]:
     from mcap.reader import make_reader
 
     with open(path, "rb") as f:
-        for schema, channel, msg in make_reader(f).iter_messages(topics=[topic], start_time=t, end_time=t + 1):
+        for schema, channel, msg in make_reader(f).iter_messages(topics=[topic], starting_at=t, ending_at=t):
             if msg.log_time == t:
                 return decode_message(schema.name, channel.message_encoding, msg.data)
     raise DropUnit("message_missing", f"{path}: no {topic} message at {t}")
