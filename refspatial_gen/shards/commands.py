@@ -79,7 +79,7 @@ def cmd_inspect(args) -> int:
                 cats = Counter(o["category"] for o in f0["objects"])
                 lines.append(f"  [{raw.seq}] {m['sample_id']}  source={f0['source']}  views={len(m['frames'])}  "
                              f"{f0['camera']['width']}x{f0['camera']['height']}  objects={len(f0['objects'])} "
-                             f"({', '.join(f'{k}x{v}' for k, v in sorted(cats.items()))})  qa={len(m['qa'])}")
+                             f"({', '.join(f'{k}={v}' for k, v in sorted(cats.items()))})  qa={len(m['qa'])}")
                 for q in m["qa"][:2]:
                     lines.append(f"      {q['family']}/{q['steps']} steps: {q['question'][:90]!r} -> {q['answer'][:40]!r}")
     except ShardError as e:
