@@ -1,0 +1,433 @@
+"""Run a compiled template program against one frame: bind slots by search, execute typed steps.
+
+Why a search with pruning: most random bindings of a template fail (the relation does not hold, the
+result is empty or not unique). Binding slots in the order the program first needs them and running each
+step as soon as its slots are bound cuts a failing branch at the first step that fails, so the engine
+tries many bindings per millisecond. Every intermediate result is kept for the trace and the checks.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from refspatial_gen.core.model import FreeSpaceRegion
+from refspatial_gen.qa import ops
+from refspatial_gen.qa.index import Reject, SceneIndex
+from refspatial_gen.qa.templates import Ref, Step, Template
+
+TURN_MARGIN = math.radians(5.0)  # a camera turn smaller than this between two views is not asked about
+
+
+@dataclass(frozen=True)
+class PointValue:
+    point: tuple[float, float]
+    object_id: int | None = None
+    region: FreeSpaceRegion | None = None
+
+
+@dataclass(frozen=True)
+class OptionValue:
+    options: tuple  # object ids, or words ("left", "right")
+    correct: int
+    marks: bool = False
+
+
+@dataclass(frozen=True)
+class NumberValue:
+    value: float  # SI: metres or radians
+    quantity: str
+
+
+@dataclass
+class Context:
+    """What a program may read besides the frame's index: the other frame of a multi-view pair."""
+
+    idx: SceneIndex
+    rng: np.random.Generator
+    second: SceneIndex | None = None
+    prune: bool = True  # early-pruning bounds on (off when replaying a program for the degeneracy check)
+
+
+def resolve(ref: Ref, env: dict[str, Any], prev: Any, idx: SceneIndex) -> Any:
+    if ref is None:
+        return prev
+    k = ref.kind
+    if k == "slot" or k == "step":
+        return env[ref.value]
+    if k == "literal":
+        return ref.value
+    if k == "all":
+        return idx.all
+    if k == "list":
+        return tuple(resolve(r, env, prev, idx) for r in ref.value)
+    raise ValueError(f"unknown ref kind {k}")
+
+
+def _set_in(st: Step, env: dict, prev: Any, idx: SceneIndex) -> frozenset:
+    r = st.args.get("in")
+    if r is None:
+        return prev if isinstance(prev, frozenset) else idx.all
+    return resolve(r, env, prev, idx)
+
+
+def _single(v: Any) -> int:
+    if isinstance(v, frozenset):
+        if len(v) != 1:
+            raise Reject("not_unique" if v else "empty")
+        return next(iter(v))
+    return v
+
+
+def _bounded(st: Step, before: frozenset, out: frozenset, ctx: "Context") -> frozenset:
+    """Early pruning: a narrowing step that removes nothing is degenerate; later steps need room."""
+    n = len(out)
+    if n == 0:
+        raise Reject("empty")
+    if not ctx.prune:
+        return out
+    if n == len(before):
+        raise Reject("no_narrowing")
+    if n < st.min_out or (st.exact_one and n != 1):
+        raise Reject("bound")
+    return out
+
+
+def _binary_args(rel: str, x: int, y: int, anchor: int | None) -> tuple:
+    return (x, y) if rel not in ops.ANCHORED else (x, y, anchor)
+
+
+def _winner(cands, rel: str, anchor: int | None, idx: SceneIndex) -> int:
+    """The one candidate for which rel(x, y[, anchor]) holds against every other; undecided -> Reject."""
+    cands = sorted(cands)
+    if not cands:
+        raise Reject("empty")
+    best = cands[0]
+    for y in cands[1:]:
+        if not idx.holds(rel, _binary_args(rel, best, y, anchor)):
+            best = y
+    for y in cands:
+        if y != best and not idx.holds(rel, _binary_args(rel, best, y, anchor)):
+            raise Reject("no_winner")
+    return best
+
+
+def run_step(st: Step, env: dict[str, Any], prev: Any, ctx: Context) -> Any:
+    """Execute one step; raise Reject when the step has no well-defined result."""
+    idx = ctx.idx
+    a = st.args
+    op = st.op
+    if op == "filter":
+        s = _set_in(st, env, prev, idx)
+        if "category" in a:
+            s = s & idx.by_category.get(resolve(a["category"], env, prev, idx), frozenset())
+        if "color" in a:
+            s = s & idx.by_color.get(resolve(a["color"], env, prev, idx), frozenset())
+        if "on" in a:
+            sid = resolve(a["on"], env, prev, idx)
+            s = frozenset(i for i in s if sid in idx.on.get(i, ()))
+        if not s:
+            raise Reject("empty")
+        if ctx.prune and (len(s) < st.min_out or (st.exact_one and len(s) != 1)):
+            raise Reject("bound")
+        return s
+    if op == "relate":
+        s = _set_in(st, env, prev, idx)
+        rel = resolve(a["relation"], env, prev, idx)
+        anchor = resolve(a["anchor"], env, prev, idx)
+        out = idx.narrow(rel, anchor, s)
+        return _bounded(st, s, out, ctx)
+    if op == "at":
+        s = _set_in(st, env, prev, idx)
+        kind, sid, label = resolve(a["spot"], env, prev, idx)
+        out = frozenset(x for x in s if idx.holds(kind, (x, sid, label)))
+        return _bounded(st, s, out, ctx)
+    if op == "is_at":
+        kind, sid, label = resolve(a["spot"], env, prev, idx)
+        return idx.holds(kind, (resolve(a["a"], env, prev, idx), sid, label))
+    if op == "between":
+        s = _set_in(st, env, prev, idx)
+        b, c = resolve(a["anchors"], env, prev, idx)
+        out = frozenset(x for x in s if x != b and x != c and idx.holds("between", (x, b, c)))
+        return _bounded(st, s, out, ctx)
+    if op == "superlative":
+        s = _set_in(st, env, prev, idx)
+        rel = resolve(a["relation"], env, prev, idx)
+        anchor = resolve(a["anchor"], env, prev, idx) if "anchor" in a else None
+        if rel in ops.ANCHORED and anchor is None:
+            raise Reject("no_anchor")
+        return _winner([x for x in s if x != anchor], rel, anchor, idx)
+    if op == "ordinal":
+        s = sorted(_set_in(st, env, prev, idx))
+        rel = resolve(a["relation"], env, prev, idx)
+        rank = resolve(a["rank"], env, prev, idx)
+        n = len(s)
+        if rank > n or n < 2:
+            raise Reject("rank")
+        wins = {x: 0 for x in s}
+        for i, x in enumerate(s):
+            for y in s[i + 1:]:
+                if idx.holds(rel, (x, y)):
+                    wins[x] += 1
+                else:
+                    wins[y] += 1
+        for x in s:
+            if wins[x] == n - rank:
+                return x
+        raise Reject("rank")
+    if op == "locate":
+        obj = _single(resolve(a.get("of"), env, prev, idx))
+        return PointValue(idx.point(obj), obj)
+    if op == "free_space":
+        if "region" in a:
+            r = resolve(a["region"], env, prev, idx)
+        elif "anchors" in a:
+            b, c = resolve(a["anchors"], env, prev, idx)
+            r = idx.regions.get(("between", (b, c))) or idx.regions.get(("between", (c, b)))
+        else:
+            d = resolve(a["direction"], env, prev, idx)
+            r = idx.regions.get((d, (resolve(a["anchor"], env, prev, idx),)))
+        if r is None:
+            raise Reject("no_free_space")
+        return PointValue((float(r.point[0]), float(r.point[1])), None, r)
+    if op == "compare":
+        rel = resolve(a["relation"], env, prev, idx)
+        x, y = _single(resolve(a["a"], env, prev, idx)), _single(resolve(a["b"], env, prev, idx))
+        anchor = resolve(a["anchor"], env, prev, idx) if "anchor" in a else None
+        if x == y or (anchor is not None and anchor in (x, y)):
+            raise Reject("same_object")
+        if rel in ops.ANCHORED:
+            if anchor is None:
+                raise Reject("no_anchor")
+            return idx.holds(rel, (x, y, anchor))
+        return idx.holds(rel, (x, y))
+    if op == "all":
+        return all(resolve(a["of"], env, prev, idx))
+    if op == "measure":
+        q = a["quantity"].value
+        x = _single(resolve(a.get("of"), env, prev, idx))
+        if q == "distance" or q == "angle":
+            y = resolve(a["to"], env, prev, idx)
+            if x == y:
+                raise Reject("same_object")
+            if q == "angle" and not (idx.has_front.get(x) and idx.has_front.get(y)):
+                raise Reject("no_front")
+            idx.holds(q, (x, y))  # an undecided quantity (unknown front...) is not asked
+            return NumberValue(idx.value(q, (x, y)), q)
+        if q == "depth" or q.startswith("rotation"):
+            idx.holds(q, (x,))  # depth of an object spanning a long range, a turn inside the margin
+            return NumberValue(idx.value(q, (x,)), q)
+        w, _, h = idx.size(x)
+        return NumberValue(h if q == "height" else w, q)
+    if op == "mark":
+        s = sorted(i for i in _set_in(st, env, prev, idx) if i in idx.referable)
+        n = resolve(a.get("count"), env, prev, idx) or 3
+        if len(s) < n:
+            raise Reject("too_few")
+        pick = ctx.rng.choice(len(s), size=n, replace=False)
+        return tuple(s[int(k)] for k in pick)
+    if op == "choose":
+        opts = resolve(a["options"], env, prev, idx)
+        rel = resolve(a["relation"], env, prev, idx)
+        anchor = resolve(a["anchor"], env, prev, idx) if "anchor" in a else None
+        if len(set(opts)) != len(opts) or (anchor is not None and anchor in opts):
+            raise Reject("same_object")
+        mode = a["mode"].value if "mode" in a else "most"
+        if mode == "which" and rel not in ops.ANCHORED:
+            if anchor is None:
+                raise Reject("no_anchor")
+            sat = [i for i, o in enumerate(opts) if idx.holds(rel, (o, anchor))]
+            if len(sat) != 1:
+                raise Reject("not_unique" if sat else "empty")
+            win = sat[0]
+        else:
+            if rel in ops.ANCHORED and anchor is None:
+                raise Reject("no_anchor")
+            if rel in ops.PAIRWISE:
+                raise Reject("not_ordered")
+            win = list(opts).index(_winner(opts, rel, anchor, idx))
+        return OptionValue(tuple(opts), win, marks="options" in a and a["options"].kind == "step")
+    if op == "camera_turn":
+        if ctx.second is None:
+            raise Reject("single_view")
+        axis = a["axis"].value
+        d = camera_turn(ctx.idx, ctx.second, axis)
+        if abs(d) < TURN_MARGIN:
+            raise Reject("margin")
+        words = ops.TURN_AXES[axis]
+        return OptionValue(words, 0 if d > 0 else 1)
+    raise ValueError(f"unknown op {op}")
+
+
+def camera_turn(first: SceneIndex, second: SceneIndex, axis: str) -> float:
+    """Signed turn of the camera from the first view to the second, radians: + = left (horizontal) / up
+    (vertical), from the optical axes in the gravity-aligned world frame (z up)."""
+    f1 = first.frame.camera.world_from_cam[:3, 2]
+    f2 = second.frame.camera.world_from_cam[:3, 2]
+    if axis == "horizontal":
+        d = math.atan2(f2[1], f2[0]) - math.atan2(f1[1], f1[0])
+        return (d + math.pi) % (2 * math.pi) - math.pi
+    e1 = math.asin(max(-1.0, min(1.0, f1[2] / np.linalg.norm(f1))))
+    e2 = math.asin(max(-1.0, min(1.0, f2[2] / np.linalg.norm(f2))))
+    return e2 - e1
+
+
+# ---------------------------------------------------------------------------------------------- search
+def slot_candidates(t: Template, name: str, env: dict[str, Any], ctx: Context) -> list:
+    """The values a slot may take in this frame (unshuffled, deterministic order)."""
+    s = t.slots[name]
+    idx = ctx.idx
+    if s.type in ("object", "anchor"):
+        used = {v for k, v in env.items() if k in t.slots and t.slots[k].type in ("object", "anchor")}
+        out = [i for i in idx.referable if i not in used]
+        if s.category:
+            out = [i for i in out if idx.category[i] in s.category]
+        if s.has_front:
+            out = [i for i in out if idx.has_front.get(i)]
+        return out
+    if s.type == "relation":
+        return list(s.choices or ())
+    if s.type == "direction":
+        return list(s.choices or ops.FREE_KINDS[:4])
+    if s.type == "number":
+        return list(s.choices or range(s.min, s.max + 1))
+    if s.type == "category":
+        return [c for c in idx.categories if not s.choices or c in s.choices]
+    if s.type == "color":
+        return [c for c in idx.colors if not s.choices or c in s.choices]
+    if s.type == "surface":
+        return [k for k in sorted(idx.surfaces) if (not s.choices or k in s.choices)
+                and any(k in v for v in idx.on.values())]
+    if s.type == "spot":
+        kinds = s.kinds or ops.REGION_KINDS
+        return [sp for sp in idx.spots if sp[0] in kinds]
+    if s.type == "region":
+        kinds = s.kinds or ops.REGION_KINDS
+        return [r for r in idx.region_list if r.kind in kinds and r.label]
+    return []
+
+
+class Search:
+    """Depth-first binding of a template's slots with a work budget; yields complete instances."""
+
+    def __init__(self, t: Template, ctx: Context, budget: int) -> None:
+        self.t, self.ctx, self.budget = t, ctx, budget
+        self.rejects: dict[str, int] = {}
+
+    def instances(self):
+        env: dict[str, Any] = {}
+        yield from self._rec(0, env, None)
+
+    def _rec(self, i: int, env: dict[str, Any], prev: Any):
+        t = self.t
+        if i == len(t.steps):
+            yield env
+            return
+        st = t.steps[i]
+        for binding in self._bindings(st.binds, env):
+            if self.budget <= 0:
+                return
+            self.budget -= 1
+            env.update(binding)
+            tries = 3 if st.op == "mark" else 1
+            for _ in range(tries):
+                try:
+                    val = run_step(st, env, prev, self.ctx)
+                except Reject as r:
+                    self.rejects[r.reason] = self.rejects.get(r.reason, 0) + 1
+                    continue
+                env[st.name] = val
+                yield from self._rec(i + 1, env, val)
+                env.pop(st.name, None)
+                if self.budget <= 0:
+                    break
+            for k in binding:
+                env.pop(k, None)
+
+    def _bindings(self, names: tuple[str, ...], env: dict[str, Any]):
+        if not names:
+            yield {}
+            return
+        rng = self.ctx.rng
+        first, rest = names[0], names[1:]
+        cands = slot_candidates(self.t, first, env, self.ctx)
+        if not cands:
+            return
+        order = rng.permutation(len(cands))
+        for k in order:
+            v = cands[int(k)]
+            env[first] = v
+            for more in self._bindings(rest, env):
+                yield {first: v, **more}
+            env.pop(first, None)
+
+
+def replay(t: Template, env: dict[str, Any], ctx: Context, drop: int | None = None) -> Any:
+    """Re-run the program with the slots of `env`, optionally with step `drop` removed; returns the answer.
+
+    Removing a set-narrowing step passes its input through; removing a superlative/ordinal leaves the
+    input set (an answer only if it holds one object); removing a compare drops it from its `all`, or
+    leaves no answer when it was the answer itself. Raises Reject when there is no answer.
+    """
+    local = {k: v for k, v in env.items() if k in t.slots}
+    ctx = Context(ctx.idx, ctx.rng, ctx.second, prune=False)
+    prev = None
+    for st in t.steps:
+        if st.index == drop:
+            if st.op in ("relate", "between", "at"):
+                val = _set_in(st, local, prev, ctx.idx)
+            elif st.op in ("superlative", "ordinal"):
+                val = _set_in(st, local, prev, ctx.idx)
+            elif st.op in ("compare", "is_at"):
+                val = None
+            else:
+                raise Reject("not_droppable")
+        elif st.op == "all":
+            vals = [local[r.value] for r in st.args["of"].value]
+            vals = [v for v in vals if v is not None]
+            if not vals:
+                raise Reject("empty")
+            val = all(vals)
+        elif st.op == "mark":
+            val = env[st.name]  # the drawn marks are part of the question
+        else:
+            val = run_step(st, local, prev, ctx)
+        if val is None and st is t.steps[-1]:
+            raise Reject("empty")
+        local[st.name] = val
+        prev = val
+    return answer_key(prev)
+
+
+def answer_key(v: Any) -> Any:
+    """A comparable identity of an answer (two programs agree when their keys are equal)."""
+    if isinstance(v, PointValue):
+        return ("point", v.object_id, v.point)
+    if isinstance(v, OptionValue):
+        return ("option", v.options[v.correct])
+    if isinstance(v, NumberValue):
+        return ("number", round(v.value, 9))
+    if isinstance(v, frozenset):
+        return ("set", tuple(sorted(v))) if len(v) != 1 else ("object", next(iter(v)))
+    if isinstance(v, (int, np.integer)) and not isinstance(v, bool):
+        return ("object", int(v))
+    return ("value", v)
+
+
+def degenerate_steps(t: Template, env: dict[str, Any], ctx: Context) -> list[int]:
+    """Indices of counted steps whose removal leaves the answer unchanged (empty = the question is sound)."""
+    full = answer_key(env[t.steps[-1].name])
+    bad = []
+    for st in t.steps:
+        if st.op not in ops.DROPPABLE:
+            continue
+        try:
+            alt = replay(t, env, ctx, drop=st.index)
+        except Reject:
+            continue
+        if alt == full:
+            bad.append(st.index)
+    return bad

@@ -1,0 +1,529 @@
+"""generate_qa: pick families and templates, search bindings, run every check, render QA pairs.
+
+Why the checks live here and not in templates: a recipe author cannot forget them. Every QA pair has
+unique references (named objects by their graph phrase, described targets resolve to exactly one
+object), no degenerate step (dropping any counted step changes the answer), no relation inside its
+margin (an undecided fact rejects the binding), and balanced answers (yes/no drawn to even out,
+letters shuffled, answer points spread over image quadrants by rejection).
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+from typing import Any
+
+import numpy as np
+
+from refspatial_gen.core.model import Frame, KeyStep, QAPair, SceneGraph
+from refspatial_gen.qa import lexicon, ops
+from refspatial_gen.qa.config import QAConfig
+from refspatial_gen.qa.executor import (Context, NumberValue, OptionValue, PointValue, Search, degenerate_steps,
+                                        slot_candidates)
+from refspatial_gen.qa.index import Reject, SceneIndex
+from refspatial_gen.qa.render import (LETTERS, fmt_angle, fmt_choices, fmt_length, fmt_points, fmt_trace,
+                                      fmt_turn, round_key)
+from refspatial_gen.qa.templates import Ref, Template
+from refspatial_gen.qa.text import Seq, parse, render
+
+CHECKS = ("unique_references", "nondegenerate", "outside_margin", "balanced")
+_INDEX_CACHE: "weakref.WeakKeyDictionary[SceneGraph, SceneIndex]" = weakref.WeakKeyDictionary()
+_PARSED: dict[str, Seq] = {}
+
+
+def scene_index(frame: Frame, graph: SceneGraph) -> SceneIndex:
+    """The cached lookup index of a (frame, graph) pair (built once per graph object)."""
+    idx = _INDEX_CACHE.get(graph)
+    if idx is None or idx.frame is not frame:
+        idx = SceneIndex(frame, graph)
+        _INDEX_CACHE[graph] = idx
+    return idx
+
+
+def _seq(text: str) -> Seq:
+    s = _PARSED.get(text)
+    if s is None:
+        s = _PARSED[text] = parse(text)
+    return s
+
+
+class Balancer:
+    """Per-call counters that keep answers even: yes/no, answer letters and answer-point quadrants."""
+
+    def __init__(self, slack: int) -> None:
+        self.slack = slack
+        self.yes_no = [0, 0]
+        self.quadrants = [0, 0, 0, 0]
+
+    def want_bool(self, rng: np.random.Generator) -> bool:
+        if self.yes_no[0] != self.yes_no[1]:
+            return self.yes_no[0] < self.yes_no[1]  # index 0 counts "yes"
+        return bool(rng.integers(2))
+
+    @staticmethod
+    def quadrant(p: tuple[float, float]) -> int:
+        return int(p[0] >= 0.5) + 2 * int(p[1] >= 0.5)
+
+    def point_ok(self, p: tuple[float, float]) -> bool:
+        return self.quadrants[self.quadrant(p)] <= min(self.quadrants) + self.slack
+
+    def add(self, answer: Any) -> None:
+        if isinstance(answer, bool):
+            self.yes_no[0 if answer else 1] += 1
+        elif isinstance(answer, PointValue):
+            self.quadrants[self.quadrant(answer.point)] += 1
+
+
+def generate_qa(frames: list[Frame], graphs: list[SceneGraph], rng: np.random.Generator,
+                config: QAConfig) -> list[QAPair]:
+    """Up to `config.max_per_sample` checked QA pairs for one sample (one frame or a multi-view group)."""
+    if len(frames) != len(graphs):
+        raise ValueError(f"{len(frames)} frames but {len(graphs)} graphs")
+    idxs = [scene_index(f, g) for f, g in zip(frames, graphs)]
+    pairs = [(i, j) for i in range(len(frames)) for j in range(len(frames))
+             if i != j and frames[i].scene_id and frames[i].scene_id == frames[j].scene_id]
+    bal = Balancer(config.point_slack)
+    out: list[QAPair] = []
+    seen: set = set()
+    per_family: dict[str, int] = {}
+    mv_count = 0
+    exhausted: set[int] = set()
+    fams = [f for f in config.families if f.weight > 0 and f.templates]
+    for _attempt in range(config.attempts + config.max_per_sample):
+        if len(out) >= config.max_per_sample or not fams:
+            break
+        usable = [f for f in fams if f.max_per_sample is None or per_family.get(f.name, 0) < f.max_per_sample]
+        if not usable:
+            break
+        w = np.array([f.weight for f in usable], float)
+        fam = usable[int(rng.choice(len(usable), p=w / w.sum()))]
+        temps = [t for t in fam.templates if t.weight > 0 and id(t) not in exhausted]
+        multi = [_is_multiview(t) for t in temps]
+        if not pairs or mv_count >= config.multiview_pairs:
+            temps = [t for t, m in zip(temps, multi) if not m]
+        if not temps:
+            continue
+        tw = np.array([t.weight * config.step_mix.get(t.n_steps, 1.0 if not config.step_mix else 0.0)
+                       for t in temps], float)
+        if tw.sum() <= 0:
+            continue
+        t = temps[int(rng.choice(len(temps), p=tw / tw.sum()))]
+        if _is_multiview(t):
+            i, j = pairs[int(rng.integers(len(pairs)))]
+            ctx = Context(idxs[i], rng, idxs[j])
+            fids = [frames[i].frame_id, frames[j].frame_id]
+        else:
+            i = int(rng.integers(len(frames)))
+            ctx = Context(idxs[i], rng)
+            fids = [frames[i].frame_id]
+        qa = _instantiate(t, ctx, rng, config, bal, seen, fids, f"{frames[0].frame_id}:{len(out):02d}")
+        if qa is None:
+            exhausted.add(id(t))  # no binding passed in this sample: do not spend more attempts on it
+            continue
+        out.append(qa)
+        per_family[fam.name] = per_family.get(fam.name, 0) + 1
+        if _is_multiview(t):
+            mv_count += 1
+    return out
+
+
+def _is_multiview(t: Template) -> bool:
+    return any(s.op == "camera_turn" for s in t.steps)
+
+
+def _instantiate(t: Template, ctx: Context, rng: np.random.Generator, config: QAConfig, bal: Balancer,
+                 seen: set, frame_ids: list[str], qa_id: str) -> QAPair | None:
+    want = bal.want_bool(rng) if t.answer_type == ops.BOOL else None
+    search = Search(t, ctx, config.budget)
+    last = t.steps[-1].name
+    for env in search.instances():
+        ans = env[last]
+        if want is not None and ans is not want:
+            continue
+        key = (t.family, t.name, tuple(sorted((k, _hashable(v)) for k, v in env.items() if k in t.slots)))
+        if key in seen:
+            continue
+        if t.answer_type == ops.OBJECT:
+            ans = PointValue(ctx.idx.point(ans), ans)
+        if isinstance(ans, PointValue):
+            if not bal.point_ok(ans.point):
+                continue
+            if ans.object_id is not None and not ctx.idx.point_in_mask(ans.object_id, ans.point):
+                continue
+        if degenerate_steps(t, env, ctx):
+            continue
+        try:
+            extra = _bind_text_only(t, env, ctx)
+            qa = _build(t, {**env, **extra}, ans, ctx, rng, frame_ids, qa_id)
+        except Reject:
+            continue
+        seen.add(key)
+        bal.add(env[last] if t.answer_type == ops.BOOL else ans)
+        return qa
+    return None
+
+
+def _one(v: Any) -> int:
+    if isinstance(v, frozenset):
+        if len(v) != 1:
+            raise Reject("not_unique")
+        return int(next(iter(v)))
+    return int(v)
+
+
+def _hashable(v: Any) -> Any:
+    if isinstance(v, (int, str, float, bool, tuple)):
+        return v
+    return (type(v).__name__, id(v))
+
+
+def _bind_text_only(t: Template, env: dict, ctx: Context) -> dict:
+    out = {}
+    for name in t.unbound:
+        c = slot_candidates(t, name, env, ctx)
+        if not c:
+            raise Reject("no_candidate")
+        out[name] = c[int(ctx.rng.integers(len(c)))]
+    return out
+
+
+# ------------------------------------------------------------------------------------------ rendering
+def _surface_name(ctx: Context, sid: str) -> str:
+    s = ctx.idx.surfaces.get(sid)
+    if s is None:
+        return f"the {sid}"
+    return s.name or f"the {s.kind}"
+
+
+def spot_phrase(idx: SceneIndex, spot: tuple[str, str, str], form: str = "") -> str:
+    """("corner", "table", "far-left") -> "the far-left corner of the table"; edges carry their own noun."""
+    kind, sid, label = spot
+    s = idx.surfaces.get(sid)
+    sname = (s.name or f"the {s.kind}") if s is not None else f"the {sid}"
+    if form == "surface":
+        return sname
+    lab = label if label.endswith(kind) else f"{label} {kind}"
+    if form == "label":
+        return lab
+    return f"the {lab} of {sname}"
+
+
+def _plural(word: str) -> str:
+    if word.endswith(("s", "x", "ch", "sh")):
+        return word + "es"
+    if word.endswith("y") and word[-2:-1] not in "aeiou":
+        return word[:-1] + "ies"
+    return word + "s"
+
+
+class _Renderer:
+    def __init__(self, t: Template, env: dict, ctx: Context, rng: np.random.Generator, choices: str,
+                 instruction: str) -> None:
+        self.t, self.env, self.ctx, self.rng = t, env, ctx, rng
+        self.choices, self.instruction = choices, instruction
+
+    def __call__(self, name: str) -> str:
+        base, _, form = name.partition(".")
+        if base == "choices":
+            return self.choices
+        if base == "instruction":
+            return self.instruction
+        s = self.t.slots[base]
+        v = self.env[base]
+        idx = self.ctx.idx
+        if s.type in ("object", "anchor"):
+            if form == "category":
+                return idx.category[v]
+            if form == "color":
+                return idx.color.get(v) or ""
+            return idx.phrase[v]
+        if s.type == "relation":
+            f = form or "prep"
+            seq = s.phrases.get(v, {}).get(f)
+            if seq is None:
+                text = lexicon.RELATION_FORMS.get(v, {}).get(f)
+                if text is None:
+                    raise Reject("no_wording")
+                seq = _seq(text)
+            return render(seq, self, self.rng, sentence=False)
+        if s.type == "direction":
+            seq = s.phrases.get(v, {}).get("") or _seq(lexicon.DIRECTION_FORMS.get(v, v.replace("_", " ")))
+            return render(seq, self, self.rng, sentence=False)
+        if s.type == "number":
+            return str(v) if form == "value" else lexicon.ORDINALS.get(v, f"{v}th")
+        if s.type == "category":
+            return _plural(v) if form == "plural" else v
+        if s.type == "color":
+            return v
+        if s.type == "surface":
+            return _surface_name(self.ctx, v)
+        if s.type == "region":
+            return _surface_name(self.ctx, v.surface_id) if form == "surface" else v.label
+        if s.type == "spot":
+            return spot_phrase(self.ctx.idx, v, form)
+        return str(v)
+
+
+def _ref_json(ref: Ref | None, env: dict, t: Template, idx: SceneIndex) -> Any:
+    if ref is None:
+        return {"step": "prev"}
+    if ref.kind == "list":
+        return [_ref_json(r, env, t, idx) for r in ref.value]
+    if ref.kind == "all":
+        return "all"
+    if ref.kind == "step":
+        return {"step": ref.value}
+    if ref.kind == "literal":
+        return ref.value
+    v = env[ref.value]
+    s = t.slots[ref.value]
+    if s.type in ("object", "anchor"):
+        return {"slot": ref.value, "object": int(v), "phrase": idx.phrase[v]}
+    if s.type == "spot":
+        return {"slot": ref.value, "spot": list(v)}
+    if s.type == "region":
+        return {"slot": ref.value, "region": {"surface_id": v.surface_id, "kind": v.kind,
+                                              "anchors": list(v.anchors), "label": v.label}}
+    return v
+
+
+def _out_json(v: Any) -> Any:
+    if isinstance(v, frozenset):
+        return sorted(int(x) for x in v)
+    if isinstance(v, PointValue):
+        d: dict[str, Any] = {"point": [round(v.point[0], 3), round(v.point[1], 3)]}
+        if v.object_id is not None:
+            d["object"] = int(v.object_id)
+        if v.region is not None:
+            d["region"] = {"surface_id": v.region.surface_id, "kind": v.region.kind,
+                           "anchors": list(v.region.anchors), "label": v.region.label}
+        return d
+    if isinstance(v, OptionValue):
+        return {"options": [int(o) if not isinstance(o, str) else o for o in v.options], "correct": v.correct}
+    if isinstance(v, NumberValue):
+        return {"value": round(v.value, 6), "quantity": v.quantity}
+    if isinstance(v, tuple):
+        return [int(x) for x in v]
+    if isinstance(v, (bool, str)):
+        return v
+    if isinstance(v, (int, np.integer)):
+        return int(v)
+    return v
+
+
+def _build(t: Template, env: dict, ans: Any, ctx: Context, rng: np.random.Generator, frame_ids: list[str],
+           qa_id: str) -> QAPair:
+    idx = ctx.idx
+    relations: set[str] = set(t.relations)
+    for name, s in t.slots.items():
+        if s.type == "relation" and name in env:
+            relations.add(env[name])
+    for st in t.steps:
+        if st.op == "between":
+            relations.add("between")
+        elif st.op == "free_space":
+            relations.add("free_space")
+            if "region" in st.args:
+                relations.add(env[st.args["region"].value].kind)
+        elif st.op in ("at", "is_at"):
+            relations.add(env[st.args["spot"].value][0])
+        elif st.op == "measure":
+            relations.add(ops.QUANTITIES[st.args["quantity"].value][1])
+        elif st.op == "camera_turn":
+            relations.add("rotation_" + st.args["axis"].value)
+    # -------- answer and choices
+    choices_text = ""
+    targets: list[int] = []
+    raw = env[t.steps[-1].name]
+    if isinstance(ans, PointValue):
+        answer = fmt_points([ans.point])
+        if ans.region is not None:
+            r = ans.region
+            struct = {"kind": "region", "points": [list(ans.point)],
+                      "region": {"surface_id": r.surface_id, "kind": r.kind, "anchors": list(r.anchors),
+                                 "label": r.label, "z": round(float(r.z), 6),
+                                 "polygon_xy": [[round(float(x), 5), round(float(y), 5)] for x, y in r.polygon_xy],
+                                 "point_world": [round(float(x), 6) for x in r.point_world]}}
+            targets = [int(a) for a in r.anchors if isinstance(a, (int, np.integer))]
+        else:
+            struct = {"kind": "points", "points": [list(ans.point)], "object_ids": [int(ans.object_id)]}
+            targets = [int(ans.object_id)]
+    elif isinstance(raw, bool):
+        order = ["yes", "no"] if rng.integers(2) == 0 else ["no", "yes"]
+        k = order.index("yes" if raw else "no")
+        choices_text = fmt_choices(order)
+        answer = f"({LETTERS[k]})" if rng.integers(2) == 0 else f"({LETTERS[k]}) {order[k]}"
+        struct = {"kind": "choice", "options": order, "letter": LETTERS[k], "answer": order[k]}
+        targets = sorted({_one(env[r.value]) for st in t.steps if st.op in ("compare", "is_at")
+                          for r in (st.args["a"], st.args.get("b")) if r is not None and r.kind in ("slot", "step")})
+    elif isinstance(raw, OptionValue):
+        n = len(raw.options)
+        if raw.marks:
+            perm = list(range(n))  # marks are already in random order; their labels follow it
+        else:
+            perm = [int(x) for x in rng.permutation(n)]
+        opts = [raw.options[p] for p in perm]
+        k = perm.index(raw.correct)
+        if raw.marks:
+            texts = ["" for _ in opts]
+        else:
+            texts = [o if isinstance(o, str) else idx.phrase[o] for o in opts]
+        choices_text = fmt_choices(texts)
+        answer = f"({LETTERS[k]})" if (raw.marks or rng.integers(2) == 0) else f"({LETTERS[k]}) {texts[k]}"
+        struct = {"kind": "choice", "options": texts, "letter": LETTERS[k],
+                  "answer": texts[k] if texts[k] else LETTERS[k]}
+        if not isinstance(opts[0], str):
+            struct["option_ids"] = [int(o) for o in opts]
+            targets = [int(opts[k])]
+        if raw.marks:
+            style = next(st.args["style"].value if "style" in st.args else "box" for st in t.steps if st.op == "mark")
+            struct["style"] = style
+            struct["marks"] = [{"label": LETTERS[i], "object_id": int(o), "style": style, "view": 0,
+                                "box": [round(float(x), 1) for x in idx.objects[o].bbox2d]
+                                if idx.objects[o].bbox2d is not None else None,
+                                "point": list(idx.point(o))} for i, o in enumerate(opts)]
+    elif isinstance(raw, NumberValue):
+        q = raw.quantity
+        kind = ops.QUANTITIES[q][2]
+        if kind == "length":
+            answer, unit = fmt_length(raw.value), "m"
+        elif kind == "angle":
+            answer, unit = fmt_angle(raw.value), "rad"
+        else:
+            answer, unit = fmt_turn(raw.value, q.split("_")[1]), "rad"
+        struct = {"kind": "number", "value": round(raw.value, 6), "unit": unit, "quantity": q}
+        targets = sorted({_one(env[r.value]) for st in t.steps if st.op == "measure"
+                          for k2, r in st.args.items() if k2 in ("of", "to") and r.kind in ("slot", "step")})
+        if not targets:
+            prev = env[t.steps[-2].name] if len(t.steps) > 1 else None
+            if isinstance(prev, frozenset) and len(prev) == 1:
+                prev = next(iter(prev))
+            if isinstance(prev, (int, np.integer)):
+                targets = [int(prev)]
+    else:
+        raise Reject("answer_type")
+    # -------- question text
+    if isinstance(ans, PointValue):
+        instr_seq = t.instructions[int(rng.integers(len(t.instructions)))] if t.instructions else \
+            _seq(lexicon.POINT_INSTRUCTIONS[int(rng.integers(len(lexicon.POINT_INSTRUCTIONS)))])
+    else:
+        instr_seq = None
+    variant = t.texts[int(rng.integers(len(t.texts)))]
+    from refspatial_gen.qa.text import placeholders
+
+    ph = placeholders(variant)
+    rend = _Renderer(t, env, ctx, rng, choices_text, "")
+    if instr_seq is not None:
+        rend.instruction = render(instr_seq, rend, rng)
+    question = render(variant, rend, rng)
+    if choices_text and "choices" not in ph:
+        question = f"{question} {choices_text}"
+    if instr_seq is not None and "instruction" not in ph:
+        question = f"{question} {rend.instruction}"
+    # -------- key steps and trace
+    key_steps = _key_steps(t, env, ans, ctx)
+    trace = fmt_trace(key_steps, answer) if t.n_steps >= 2 else ""
+    program = []
+    prev_name = None
+    for st in t.steps:
+        args = {k: _ref_json(r, env, t, idx) for k, r in st.args.items()}
+        if st.args.get("in") is None and ops.OPS[st.op].args.get("in") is not None:
+            args["in"] = {"step": prev_name} if prev_name else "all"
+        if st.op in ("locate", "measure") and "of" not in st.args:
+            args["of"] = {"step": prev_name}
+        program.append({"op": st.op, "as": st.name, "args": args, "out": _out_json(env[st.name]),
+                        "weight": st.weight})
+        prev_name = st.name
+    checks = list(CHECKS)
+    if isinstance(ans, PointValue):
+        checks.append("free_point" if ans.region is not None else "point_in_mask")
+    return QAPair(qa_id=qa_id, family=t.family, template=f"{t.family}/{t.name}", question=question, answer=answer,
+                  answer_struct=struct, relations=sorted(relations), steps=t.n_steps, frame_ids=list(frame_ids),
+                  image_size=(idx.W, idx.H), program=program, trace=trace, key_steps=key_steps, checks=checks,
+                  targets=targets)
+
+
+def _key_steps(t: Template, env: dict, ans: Any, ctx: Context) -> list[KeyStep]:
+    """One perceptual step per object the reasoning looks at, in program order, then the answer."""
+    idx = ctx.idx
+    out: list[KeyStep] = []
+    done: set = set()
+
+    def pos(o: int, phrase: str | None = None) -> None:
+        ph = phrase or idx.phrase.get(o) or f"the target {idx.category[o]}"
+        if ("P", ph) not in done:
+            done.add(("P", ph))
+            out.append(KeyStep("Position", ph, round_key(idx.point(o))))
+
+    def size(o: int) -> None:
+        ph = idx.phrase.get(o) or f"the target {idx.category[o]}"
+        if ("S", ph) not in done:
+            done.add(("S", ph))
+            out.append(KeyStep("Size", ph, round_key(idx.size(o))))
+
+    def orient(o: int) -> None:
+        ph = idx.phrase.get(o) or f"the target {idx.category[o]}"
+        if ("O", ph) not in done:
+            done.add(("O", ph))
+            out.append(KeyStep("Orientation", ph, round_key(idx.front_cam(o))))
+
+    def objs(st) -> list[int]:
+        res = []
+        for k in ("anchor", "a", "b", "of", "to"):
+            r = st.args.get(k)
+            if r is not None and r.kind in ("slot", "step"):
+                res.append(_one(env[r.value]))
+        for k in ("anchors", "options"):
+            r = st.args.get(k)
+            if r is not None and r.kind == "list":
+                res.extend(env[x.value] for x in r.value)
+        return res
+
+    final_orient: list[int] = []
+    for st in t.steps:
+        rel = None
+        if "relation" in st.args:
+            r = st.args["relation"]
+            rel = r.value if r.kind == "literal" else env[r.value]
+        if st.op == "mark":
+            for i, o in enumerate(env[st.name]):
+                pass  # marks are located below in label order (after shuffling, labels follow the mark order)
+        for o in objs(st):
+            pos(o)
+            if rel in ops.SIZE_RELATIONS:
+                size(o)
+        if st.op == "compare" and rel in ops.ORIENTATION_RELATIONS:
+            orient(_one(env[st.args["a"].value]))
+        if st.op == "relate" and rel in ops.ORIENTATION_RELATIONS:
+            final_orient.append(-1)
+        if st.op == "measure":
+            q = st.args["quantity"].value
+            targets = [_one(env[st.args[k].value]) for k in ("of", "to") if k in st.args]
+            if "of" not in st.args:
+                prev = env[t.steps[st.index - 1].name]
+                targets.insert(0, next(iter(prev)) if isinstance(prev, frozenset) else prev)
+            for o in targets:
+                if q in ("height", "width"):
+                    size(o)
+                elif q == "angle":
+                    orient(o)
+                else:
+                    pos(o)
+        if st.op == "choose" and st.args["options"].kind == "step":
+            marks = env[st.args["options"].value]
+            for i, o in enumerate(marks):
+                pos(o, f"the object marked ({LETTERS[i]})")
+                if rel in ops.SIZE_RELATIONS:
+                    size(o)
+    if isinstance(ans, PointValue):
+        if ans.region is not None:
+            r = ans.region
+            out.append(KeyStep("Position", f"the free space {r.kind.replace('_', ' ')} "
+                               + " and ".join(idx.phrase.get(a, str(a)) for a in r.anchors if a in idx.phrase)
+                               if r.kind in ops.FREE_KINDS else f"the free space at the {r.label}",
+                               round_key(ans.point)))
+        else:
+            if final_orient:
+                orient(ans.object_id)
+            pos(ans.object_id)
+    return out

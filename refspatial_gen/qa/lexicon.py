@@ -1,0 +1,83 @@
+"""Default wording for relations, directions, ordinals and output instructions.
+
+Why in one table: a relation id (relations.md) must read the same way in every template, and the
+compiler needs to know which forms exist to reject `{rel.superlative}` on a relation that has none.
+Templates can override any form per slot (`phrases:` in the slot) without touching this file.
+Text uses the template grammar ({a|b} synonyms, [optional]).
+"""
+
+from __future__ import annotations
+
+# relation id -> form -> text. Forms: prep ("A is <prep> B"), cmp ("which is <cmp>"), sup ("the <sup> X"),
+# ord ("the second X <ord>"), noun (a name for measured quantities).
+RELATION_FORMS: dict[str, dict[str, str]] = {
+    "left": {"prep": "{to the left of|left of|on the left side of}", "cmp": "further to the left",
+             "sup": "leftmost", "ord": "from the left", "adj": "on the left"},
+    "right": {"prep": "{to the right of|right of|on the right side of}", "cmp": "further to the right",
+              "sup": "rightmost", "ord": "from the right", "adj": "on the right"},
+    "front": {"prep": "{in front of|closer to the camera than}", "cmp": "closer to the {camera|viewer}",
+              "sup": "{closest to the camera|nearest to the viewer|frontmost}", "ord": "from the front",
+              "adj": "in front"},
+    "behind": {"prep": "{behind|farther from the camera than}", "cmp": "farther from the {camera|viewer}",
+               "sup": "{farthest from the camera|farthest from the viewer|rearmost}", "ord": "from the back",
+               "adj": "at the back"},
+    "above_world": {"prep": "{above|higher than} [, from the real-world perspective,]",
+                    "cmp": "higher up in the real world", "sup": "highest [in the real world]",
+                    "adj": "higher up"},
+    "below_world": {"prep": "{below|lower than} [, from the real-world perspective,]",
+                    "cmp": "lower down in the real world", "sup": "lowest [in the real world]", "adj": "lower down"},
+    "above_image": {"prep": "above [, from the image's perspective,]", "cmp": "higher in the image",
+                    "sup": "topmost [in the image]", "ord": "from the top [of the image]", "adj": "higher in the image"},
+    "below_image": {"prep": "below [, from the image's perspective,]", "cmp": "lower in the image",
+                    "sup": "bottommost [in the image]", "ord": "from the bottom [of the image]",
+                    "adj": "lower in the image"},
+    "tall": {"prep": "taller than", "cmp": "taller", "sup": "tallest", "adj": "tall"},
+    "short": {"prep": "shorter than", "cmp": "shorter", "sup": "shortest", "adj": "short"},
+    "big": {"prep": "{bigger|larger} than", "cmp": "{bigger|larger}", "sup": "{biggest|largest}", "adj": "big"},
+    "small": {"prep": "smaller than", "cmp": "smaller", "sup": "smallest", "adj": "small"},
+    "wide": {"prep": "wider than", "cmp": "wider", "sup": "widest", "adj": "wide"},
+    "thin": {"prep": "{thinner|narrower} than", "cmp": "{thinner|narrower}", "sup": "{thinnest|narrowest}",
+             "adj": "thin"},
+    "close": {"prep": "closer to", "cmp": "closer to", "sup": "{closest|nearest} to"},
+    "far": {"prep": "farther from", "cmp": "farther from", "sup": "farthest from"},
+    "inside": {"prep": "{inside|in}"},
+    "outside": {"prep": "outside"},
+    "facing": {"prep": "facing"},
+    "facing_away": {"prep": "facing away from"},
+    "touching": {"prep": "{touching|in contact with}"},
+    "far_from": {"prep": "far from"},
+    "next_to": {"prep": "{next to|beside}"},
+    "on": {"prep": "on"},
+    "between": {"prep": "between"},
+    "distance": {"noun": "distance"},
+    "depth": {"noun": "distance from the camera"},
+    "angle": {"noun": "angle"},
+    "rotation_horizontal": {"noun": "horizontal rotation"},
+    "rotation_vertical": {"noun": "vertical rotation"},
+}
+
+# free-space / region kinds -> phrase ("a free spot <phrase> the cup")
+DIRECTION_FORMS: dict[str, str] = {
+    "left_of": "{to the left of|left of}",
+    "right_of": "{to the right of|right of}",
+    "in_front_of": "in front of",
+    "behind": "behind",
+    "between": "between",
+    "left": "left",
+    "right": "right",
+    "up": "up",
+    "down": "down",
+}
+
+ORDINALS = {1: "first", 2: "second", 3: "third", 4: "fourth", 5: "fifth", 6: "sixth", 7: "seventh", 8: "eighth"}
+
+POINT_INSTRUCTIONS = (
+    "Your answer should be formatted as a list of tuples, i.e. \\[(x1, y1)\\], where each tuple contains the x and y "
+    "coordinates of a point satisfying the conditions above. The coordinates should be between 0 and 1, "
+    "indicating the normalized pixel locations of the points in the image.",
+    "Answer with a list of tuples \\[(x1, y1), ...\\] of normalized image coordinates between 0 and 1.",
+    "Please output the point as a list of tuples \\[(x, y)\\] with x and y normalized to \\[0, 1\\] by the image width "
+    "and height.",
+)
+
+CHOICE_INSTRUCTIONS = ("Answer with the option's letter.", "Choose one option.", "")

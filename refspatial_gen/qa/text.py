@@ -1,0 +1,155 @@
+"""Template text variants: `{slot}` placeholders, `{a|b|c}` synonyms, `[optional part]`, nesting allowed.
+
+Why a tiny grammar of our own: recipe authors write many phrasings in one line, and the compiler must
+know every placeholder a variant uses (an unknown one is a load-time error, not a KeyError at run time).
+A text compiles once to a tree; rendering walks it with the sample's numpy Generator.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Callable, Union
+
+import numpy as np
+
+_IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)?$")
+
+
+class TextSyntaxError(ValueError):
+    """A malformed variant; the message says where (column) and what."""
+
+
+@dataclass(frozen=True)
+class Lit:
+    text: str
+
+
+@dataclass(frozen=True)
+class Slot:
+    name: str  # "target" or "rel.superlative"
+
+
+@dataclass(frozen=True)
+class Alt:
+    options: tuple["Seq", ...]
+
+
+@dataclass(frozen=True)
+class Opt:
+    body: "Seq"
+
+
+@dataclass(frozen=True)
+class Seq:
+    parts: tuple[Union[Lit, Slot, Alt, Opt], ...]
+
+
+def parse(text: str) -> Seq:
+    """Compile one variant. Raises TextSyntaxError on unbalanced brackets or empty placeholders."""
+    seq, pos = _parse_seq(text, 0, closers="")
+    if pos != len(text):
+        raise TextSyntaxError(f"unexpected {text[pos]!r} at column {pos + 1}")
+    return seq
+
+
+def _parse_seq(text: str, pos: int, closers: str) -> tuple[Seq, int]:
+    parts: list = []
+    buf: list[str] = []
+    while pos < len(text):
+        ch = text[pos]
+        if ch == "\\" and pos + 1 < len(text):
+            buf.append(text[pos + 1])
+            pos += 2
+            continue
+        if ch in closers or (ch == "|" and "}" in closers):
+            break
+        if ch in "]}":
+            raise TextSyntaxError(f"unbalanced {ch!r} at column {pos + 1}")
+        if ch == "[":
+            if buf:
+                parts.append(Lit("".join(buf)))
+                buf = []
+            body, pos = _parse_seq(text, pos + 1, closers="]")
+            if pos >= len(text) or text[pos] != "]":
+                raise TextSyntaxError(f"unclosed '[' (opened before column {pos + 1})")
+            parts.append(Opt(body))
+            pos += 1
+            continue
+        if ch == "{":
+            if buf:
+                parts.append(Lit("".join(buf)))
+                buf = []
+            node, pos = _parse_brace(text, pos + 1)
+            parts.append(node)
+            continue
+        buf.append(ch)
+        pos += 1
+    if buf:
+        parts.append(Lit("".join(buf)))
+    return Seq(tuple(parts)), pos
+
+
+def _parse_brace(text: str, pos: int) -> tuple[Union[Slot, Alt], int]:
+    start = pos
+    options: list[Seq] = []
+    while True:
+        seq, pos = _parse_seq(text, pos, closers="}")
+        options.append(seq)
+        if pos >= len(text):
+            raise TextSyntaxError(f"unclosed '{{' (opened at column {start})")
+        if text[pos] == "|":
+            pos += 1
+            continue
+        pos += 1  # "}"
+        break
+    if len(options) == 1:
+        raw = text[start:pos - 1].strip()
+        if not _IDENT.match(raw):
+            raise TextSyntaxError(f"placeholder {{{raw}}} at column {start} is not a name (use {{a|b}} for synonyms)")
+        return Slot(raw), pos
+    return Alt(tuple(options)), pos
+
+
+def placeholders(seq: Seq) -> set[str]:
+    """Every placeholder name a compiled variant can use."""
+    out: set[str] = set()
+    for p in seq.parts:
+        if isinstance(p, Slot):
+            out.add(p.name)
+        elif isinstance(p, Alt):
+            for o in p.options:
+                out |= placeholders(o)
+        elif isinstance(p, Opt):
+            out |= placeholders(p.body)
+    return out
+
+
+def render(seq: Seq, values: Callable[[str], str], rng: np.random.Generator, p_optional: float = 0.5,
+           sentence: bool = True) -> str:
+    """Render with synonyms and optional parts drawn from `rng`; whitespace tidied, and the first letter
+    capitalised when `sentence` (not for phrases inserted into a sentence)."""
+    out: list[str] = []
+    _render(seq, values, rng, p_optional, out)
+    return tidy("".join(out), sentence)
+
+
+def _render(seq: Seq, values, rng, p_opt, out: list[str]) -> None:
+    for p in seq.parts:
+        if isinstance(p, Lit):
+            out.append(p.text)
+        elif isinstance(p, Slot):
+            out.append(values(p.name))
+        elif isinstance(p, Alt):
+            _render(p.options[int(rng.integers(len(p.options)))], values, rng, p_opt, out)
+        elif rng.random() < p_opt:
+            _render(p.body, values, rng, p_opt, out)
+
+
+_SPACES = re.compile(r"\s+")
+_SPACE_PUNCT = re.compile(r"\s+([,.?!;:])")
+
+
+def tidy(s: str, sentence: bool = True) -> str:
+    s = _SPACE_PUNCT.sub(r"\1", _SPACES.sub(" ", s)).strip()
+    return s[:1].upper() + s[1:] if s and sentence else s
