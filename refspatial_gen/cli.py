@@ -15,6 +15,7 @@ COMMAND_MODULES = [
     "refspatial_gen.run.commands",
     "refspatial_gen.shards.commands",
     "refspatial_gen.graph.commands",
+    "refspatial_gen.sources.sim.commands",
 ]
 
 

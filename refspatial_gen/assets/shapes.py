@@ -109,6 +109,7 @@ class AssetGeometry:
     rolls: bool = False  # round: give it rolling friction
     density: float = 500.0  # kg/m^3 of the solid parts
     _hull: np.ndarray | None = None
+    _outline: np.ndarray | None = None
 
     def hull_points(self) -> np.ndarray:
         """Vertices of the convex hull of all drawn parts, object frame (N, 3)."""

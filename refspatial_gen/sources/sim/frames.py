@@ -68,7 +68,7 @@ def make_frames(unit_key: str, desc: SceneDesc, sim: SimModel, cams: list[Camera
             if n == 0:
                 continue
             box, pts = boxes[k]
-            ys, xs = np.nonzero(m)
+            cols, rows = np.flatnonzero(m.any(axis=0)), np.flatnonzero(m.any(axis=1))
             sil = silhouette_area(cam, pts)
             vis = float(min(1.0, n / sil)) if sil > 0 else 1.0
             front, phrase = None, None
@@ -79,7 +79,7 @@ def make_frames(unit_key: str, desc: SceneDesc, sim: SimModel, cams: list[Camera
                     front, phrase = fb / np.linalg.norm(fb), o.category.front_phrase
             objects.append(ObjectInstance(
                 id=k + 1, category=o.category.label, box=box, mask=RLE.encode(m),
-                bbox2d=(float(xs.min()), float(ys.min()), float(xs.max() + 1), float(ys.max() + 1)),
+                bbox2d=(float(cols[0]), float(rows[0]), float(cols[-1] + 1), float(rows[-1] + 1)),
                 visible_fraction=round(vis, 4), attributes={"color": o.color, "material": o.material},
                 front=front, front_phrase=phrase,
                 provenance={"source": "sim", "asset": o.category.name, "support": supports[k], "pixels": n}))

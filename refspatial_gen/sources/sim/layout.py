@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from shapely.geometry import MultiPoint, Polygon, box as shp_box
+from shapely.geometry import Polygon, box as shp_box
 from shapely import affinity
 
 from refspatial_gen.assets import AssetGeometry, Catalog, Category, build_geometry
@@ -81,11 +81,19 @@ class SceneDesc:
     appearance: dict[str, Any]
 
 
+def _outline(geo: AssetGeometry) -> np.ndarray:
+    """The 2D convex outline (object frame xy) of the geometry, computed once per instance."""
+    if getattr(geo, "_outline", None) is None:
+        import cv2
+
+        xy = geo.hull_points()[:, :2].astype(np.float32)
+        geo._outline = cv2.convexHull(xy)[:, 0, :].astype(float)
+    return geo._outline
+
+
 def footprint(geo: AssetGeometry, yaw: float) -> Polygon:
-    pts = geo.hull_points()[:, :2]
     c, s = np.cos(yaw), np.sin(yaw)
-    xy = pts @ np.array([[c, s], [-s, c]])
-    return MultiPoint([tuple(p) for p in xy]).convex_hull
+    return Polygon(_outline(geo) @ np.array([[c, s], [-s, c]]))
 
 
 def _jitter_rgb(rgb, rng: np.random.Generator, amount: float = 0.06) -> np.ndarray:
