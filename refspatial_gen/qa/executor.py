@@ -9,6 +9,7 @@ tries many bindings per millisecond. Every intermediate result is kept for the t
 from __future__ import annotations
 
 import math
+from itertools import product
 from dataclasses import dataclass
 from typing import Any
 
@@ -311,28 +312,55 @@ def slot_candidates(t: Template, name: str, env: dict[str, Any], ctx: Context) -
 
 
 class Search:
-    """Depth-first binding of a template's slots with a work budget; yields complete instances."""
+    """Depth-first binding of a template's slots with a work budget; yields complete instances.
+
+    Each slot's candidates are shuffled once per search (the sample's generator); object slots must bind
+    distinct objects. Every executed step costs one unit of budget.
+    """
 
     def __init__(self, t: Template, ctx: Context, budget: int) -> None:
         self.t, self.ctx, self.budget = t, ctx, budget
         self.rejects: dict[str, int] = {}
+        self._cands: dict[str, list] = {}
+        self._objslots = {n for n, s in t.slots.items() if s.type in ("object", "anchor")}
+
+    def candidates(self, name: str) -> list:
+        c = self._cands.get(name)
+        if c is None:
+            base = slot_candidates(self.t, name, {}, self.ctx)
+            if len(base) > 1:
+                order = self.ctx.rng.permutation(len(base))
+                base = [base[int(k)] for k in order]
+            c = self._cands[name] = base
+        return c
 
     def instances(self):
         env: dict[str, Any] = {}
-        yield from self._rec(0, env, None)
+        yield from self._rec(0, env, None, set())
 
-    def _rec(self, i: int, env: dict[str, Any], prev: Any):
+    def _rec(self, i: int, env: dict[str, Any], prev: Any, used: set):
         t = self.t
         if i == len(t.steps):
             yield env
             return
         st = t.steps[i]
-        for binding in self._bindings(st.binds, env):
+        names = st.binds
+        objs = [k for k, nm in enumerate(names) if nm in self._objslots]
+        combos = product(*[self.candidates(nm) for nm in names]) if names else ((),)
+        tries = 3 if st.op == "mark" else 1
+        for combo in combos:
             if self.budget <= 0:
                 return
+            if objs:
+                vals = [combo[k] for k in objs]
+                if len(set(vals)) != len(vals) or not used.isdisjoint(vals):
+                    continue
+                used2 = used | set(vals)
+            else:
+                used2 = used
+            for nm, v in zip(names, combo):
+                env[nm] = v
             self.budget -= 1
-            env.update(binding)
-            tries = 3 if st.op == "mark" else 1
             for _ in range(tries):
                 try:
                     val = run_step(st, env, prev, self.ctx)
@@ -340,29 +368,12 @@ class Search:
                     self.rejects[r.reason] = self.rejects.get(r.reason, 0) + 1
                     continue
                 env[st.name] = val
-                yield from self._rec(i + 1, env, val)
+                yield from self._rec(i + 1, env, val, used2)
                 env.pop(st.name, None)
                 if self.budget <= 0:
                     break
-            for k in binding:
-                env.pop(k, None)
-
-    def _bindings(self, names: tuple[str, ...], env: dict[str, Any]):
-        if not names:
-            yield {}
-            return
-        rng = self.ctx.rng
-        first, rest = names[0], names[1:]
-        cands = slot_candidates(self.t, first, env, self.ctx)
-        if not cands:
-            return
-        order = rng.permutation(len(cands))
-        for k in order:
-            v = cands[int(k)]
-            env[first] = v
-            for more in self._bindings(rest, env):
-                yield {first: v, **more}
-            env.pop(first, None)
+            for nm in names:
+                env.pop(nm, None)
 
 
 def replay(t: Template, env: dict[str, Any], ctx: Context, drop: int | None = None) -> Any:

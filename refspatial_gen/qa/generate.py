@@ -95,19 +95,17 @@ def generate_qa(frames: list[Frame], graphs: list[SceneGraph], rng: np.random.Ge
         usable = [f for f in fams if f.max_per_sample is None or per_family.get(f.name, 0) < f.max_per_sample]
         if not usable:
             break
-        w = np.array([f.weight for f in usable], float)
-        fam = usable[int(rng.choice(len(usable), p=w / w.sum()))]
+        fam = usable[_pick([f.weight for f in usable], rng)]
         temps = [t for t in fam.templates if t.weight > 0 and id(t) not in exhausted]
         multi = [_is_multiview(t) for t in temps]
         if not pairs or mv_count >= config.multiview_pairs:
             temps = [t for t, m in zip(temps, multi) if not m]
         if not temps:
             continue
-        tw = np.array([t.weight * config.step_mix.get(t.n_steps, 1.0 if not config.step_mix else 0.0)
-                       for t in temps], float)
-        if tw.sum() <= 0:
+        tw = [t.weight * config.step_mix.get(t.n_steps, 1.0 if not config.step_mix else 0.0) for t in temps]
+        if sum(tw) <= 0:
             continue
-        t = temps[int(rng.choice(len(temps), p=tw / tw.sum()))]
+        t = temps[_pick(tw, rng)]
         if _is_multiview(t):
             i, j = pairs[int(rng.integers(len(pairs)))]
             ctx = Context(idxs[i], rng, idxs[j])
@@ -125,6 +123,18 @@ def generate_qa(frames: list[Frame], graphs: list[SceneGraph], rng: np.random.Ge
         if _is_multiview(t):
             mv_count += 1
     return out
+
+
+def _pick(weights: list[float], rng: np.random.Generator) -> int:
+    """Index drawn with probability proportional to its weight (cheaper than rng.choice with p=)."""
+    total = sum(weights)
+    r = rng.random() * total
+    acc = 0.0
+    for i, w in enumerate(weights):
+        acc += w
+        if r < acc and w > 0:
+            return i
+    return max(i for i, w in enumerate(weights) if w > 0)
 
 
 def _is_multiview(t: Template) -> bool:
