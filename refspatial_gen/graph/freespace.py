@@ -26,7 +26,9 @@ MAX_SAMPLES = 3000  # grid points per region (the grid coarsens for large region
 POINT_TRIES = 12
 OBSTACLE_HEIGHT = 0.005  # an object reaching this far above the surface blocks it
 MAX_BETWEEN_GAP = {"tabletop": 0.6, "room": 3.0}
-MIN_BETWEEN_GAP_FACTOR = 2.0  # the gap must exceed this many clearances
+MIN_BETWEEN_GAP_FACTOR = 2.0
+BETWEEN_NEIGHBOURS = 3  # "between" regions for each anchor and its nearest neighbours only
+SIMPLIFY = 0.003  # m, stored outlines are simplified by this much (the checker uses the stored outline)  # the gap must exceed this many clearances
 
 
 # ----------------------------------------------------------------------------- shared geometry
@@ -66,12 +68,13 @@ def obstacle_footprints(frame: Frame, G: np.ndarray, z: float, gap: float) -> li
 
 
 def check_free_point(frame: Frame, graph: SceneGraph, region: FreeSpaceRegion,
-                     point: tuple[float, float] | None = None) -> list[str]:
+                     point: tuple[float, float] | None = None, obstacles: list[np.ndarray] | None = None) -> list[str]:
     """Problems with a free-space answer point (the region's own point by default); [] means valid.
 
     Checks: inside the image; the pixel's ray meets the surface plane in front of the camera; the hit
     lies on the support surface, inside the region, outside every obstacle footprint; and the depth map
-    agrees with the surface there within the visibility tolerance.
+    agrees with the surface there within the visibility tolerance. `obstacles` (footprints) may be
+    passed in when many points of one frame are checked; by default they are computed from the frame.
     """
     th = graph.meta.get("thresholds", {})
     tol = float(th.get("visibility_tolerance", 0.025))
@@ -97,7 +100,7 @@ def check_free_point(frame: Frame, graph: SceneGraph, region: FreeSpaceRegion,
             problems.append(f"point ({hit[0]:.3f}, {hit[1]:.3f}) is off surface {region.surface_id}")
     if not shapely.contains_xy(Polygon(region.polygon_xy), hit[0], hit[1]):
         problems.append("point is outside the region polygon")
-    for fp in obstacle_footprints(frame, G, region.z, gap):
+    for fp in (obstacle_footprints(frame, G, region.z, gap) if obstacles is None else obstacles):
         if shapely.contains_xy(Polygon(fp), hit[0], hit[1]):
             problems.append(f"point ({hit[0]:.3f}, {hit[1]:.3f}) lies on an obstacle's footprint")
             break
@@ -168,7 +171,10 @@ def _visible_samples(geom: SceneGeom, poly: Polygon, z: float) -> tuple[np.ndarr
 
 
 def _region(geom: SceneGeom, graph_stub: SceneGraph, sid: str, kind: str, anchors: tuple, poly: Polygon,
-            z: float, label: str) -> FreeSpaceRegion | None:
+            z: float, label: str, obstacles: list[np.ndarray]) -> FreeSpaceRegion | None:
+    poly = poly.simplify(SIMPLIFY, preserve_topology=True)
+    if not isinstance(poly, Polygon) or poly.is_empty:
+        return None
     vis, step = _visible_samples(geom, poly, z)
     area = len(vis) * step * step
     if area < geom.th.free_min_area:
@@ -176,7 +182,7 @@ def _region(geom: SceneGeom, graph_stub: SceneGraph, sid: str, kind: str, anchor
     depth_in = shapely.distance(shapely.points(vis), poly.exterior)
     order = np.argsort(-np.round(depth_in, 6), kind="stable")
     G = geom.gravity.rotation
-    poly_xy = [(float(x), float(y)) for x, y in np.asarray(poly.exterior.coords)[:-1]]
+    poly_xy = [(round(float(x), 5), round(float(y), 5)) for x, y in np.asarray(poly.exterior.coords)[:-1]]
     for k in order[:POINT_TRIES]:
         pw = np.array([vis[k, 0], vis[k, 1], z])
         uv, _ = geom.project_world(pw[None])
@@ -187,7 +193,7 @@ def _region(geom: SceneGeom, graph_stub: SceneGraph, sid: str, kind: str, anchor
             continue
         r = FreeSpaceRegion(sid, kind, tuple(anchors), poly_xy, z, round(area, 6),
                             (float(hit[0]), float(hit[1]), float(z)), p, label)
-        if not check_free_point(geom.frame, graph_stub, r):
+        if not check_free_point(geom.frame, graph_stub, r, obstacles=obstacles):
             return r
     return None
 
@@ -217,11 +223,12 @@ def _build(geom: SceneGeom) -> list[FreeSpaceRegion]:
     out: list[FreeSpaceRegion] = []
     for s in geom.surfaces:
         z = s.top_z
-        surf = Polygon(surface_polygon(s.box)).buffer(-th.free_clearance)
+        surf = Polygon(surface_polygon(s.box)).buffer(-th.free_clearance, join_style="mitre")
         view = _view_polygon(geom, z)
         if surf.is_empty or view is None:
             continue
-        obst = [Polygon(fp).buffer(th.free_clearance) for fp in obstacle_footprints(geom.frame, G, z, th.support_gap)]
+        obst_fp = obstacle_footprints(geom.frame, G, z, th.support_gap)
+        obst = [Polygon(fp).buffer(th.free_clearance, join_style="mitre") for fp in obst_fp]
         free = surf.intersection(view)
         if obst:
             free = free.difference(unary_union(obst))
@@ -240,20 +247,23 @@ def _build(geom: SceneGeom) -> list[FreeSpaceRegion]:
                 for kind, d in dirs:
                     poly = _largest(free.intersection(_wedge(c, d, radius)))
                     if poly is not None:
-                        r = _region(geom, stub, s.id, kind, (int(geom.ids[i]),), poly, z, "")
+                        r = _region(geom, stub, s.id, kind, (int(geom.ids[i]),), poly, z, "", obst_fp)
                         if r is not None:
                             out.append(r)
-        for a_k, i in enumerate(on_s):
-            for j in on_s[a_k + 1:]:
-                gapd = geom.surface_distance[i, j]
-                if gapd < MIN_BETWEEN_GAP_FACTOR * th.free_clearance * 2 or gapd > MAX_BETWEEN_GAP[scale]:
-                    continue
-                hull = shapely.convex_hull(shapely.MultiPoint(np.vstack([geom.footprints[i], geom.footprints[j]])))
-                poly = _largest(free.intersection(hull))
-                if poly is not None:
-                    r = _region(geom, stub, s.id, "between", (int(geom.ids[i]), int(geom.ids[j])), poly, z, "")
-                    if r is not None:
-                        out.append(r)
+        pairs = set()
+        for i in on_s:  # each anchor with its nearest neighbours on the surface
+            near = sorted((j for j in on_s if j != i), key=lambda j: (geom.surface_distance[i, j], int(geom.ids[j])))
+            pairs.update(tuple(sorted((int(i), int(j)), key=lambda k: int(geom.ids[k]))) for j in near[:BETWEEN_NEIGHBOURS])
+        for i, j in sorted(pairs, key=lambda p: (int(geom.ids[p[0]]), int(geom.ids[p[1]]))):
+            gapd = geom.surface_distance[i, j]
+            if gapd < MIN_BETWEEN_GAP_FACTOR * th.free_clearance * 2 or gapd > MAX_BETWEEN_GAP[scale]:
+                continue
+            hull = shapely.convex_hull(shapely.MultiPoint(np.vstack([geom.footprints[i], geom.footprints[j]])))
+            poly = _largest(free.intersection(hull))
+            if poly is not None:
+                r = _region(geom, stub, s.id, "between", (int(geom.ids[i]), int(geom.ids[j])), poly, z, "", obst_fp)
+                if r is not None:
+                    out.append(r)
         lab = labels.get(s.id, {})
         spoly = lab.get("polygon")
         for name, p in sorted(lab.get("corners", {}).items()):
@@ -265,7 +275,7 @@ def _build(geom: SceneGeom) -> list[FreeSpaceRegion]:
             sq = Polygon([p, p + e1, p + e1 + e2, p + e2])
             poly = _largest(free.intersection(sq))
             if poly is not None:
-                r = _region(geom, stub, s.id, "corner", (), poly, z, f"{name} corner")
+                r = _region(geom, stub, s.id, "corner", (), poly, z, f"{name} corner", obst_fp)
                 if r is not None:
                     out.append(r)
         for name, (a, b) in sorted(lab.get("edges", {}).items()):
@@ -275,7 +285,7 @@ def _build(geom: SceneGeom) -> list[FreeSpaceRegion]:
             band = Polygon([a, b, b + inward * w, a + inward * w])
             poly = _largest(free.intersection(band))
             if poly is not None:
-                r = _region(geom, stub, s.id, "edge", (), poly, z, name)
+                r = _region(geom, stub, s.id, "edge", (), poly, z, name, obst_fp)
                 if r is not None:
                     out.append(r)
     return out

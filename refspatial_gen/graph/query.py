@@ -128,7 +128,7 @@ class GraphIndex:
             if f is not None:
                 return f
             if self.nodes[int(args[0])].attributes.get("front") is None:
-                return None
+                return RelationFact(relation, args, None, float(np.pi), self.th.facing_margin)
             return RelationFact(relation, args, False, float(np.pi), self.th.facing_margin)
         if relation in ("corner", "edge"):
             a, sid, label = args
@@ -154,12 +154,12 @@ class GraphIndex:
         if relation == "angle":
             fa, fb = (self.nodes[int(x)].attributes.get("front") for x in args)
             v = None if fa is None or fb is None else angle_between(fa, fb)
-            return None if v is None else RelationFact(relation, args, True, v, self.th.angle_margin)
+            return RelationFact(relation, args, None if v is None else True, v or 0.0, self.th.angle_margin)
         if relation in SECTORS:
             a, b = args
             fb = self.nodes[int(b)].attributes.get("front")
             if fb is None:
-                return None
+                return RelationFact(relation, args, None, 0.0, self.th.sector_margin)
             ca = np.array(self.nodes[int(a)].attributes["center"][:2], float)
             cb = np.array(self.nodes[int(b)].attributes["center"][:2], float)
             theta = bearings(np.stack([ca, cb]), np.array([[np.nan, np.nan], fb], float))[0, 1]

@@ -218,8 +218,11 @@ class SceneGeom:
 
     def project_world(self, points_g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Gravity-world points -> (pixel uv, camera depth)."""
-        pw = np.asarray(points_g, float).reshape(-1, 3) @ self.gravity.rotation  # back to the frame's world
-        return self.frame.camera.project(pw)
+        if "_cam_from_g" not in self.cache:
+            T = self.frame.camera.cam_from_world
+            self.cache["_cam_from_g"] = (T[:3, :3] @ self.gravity.rotation.T, T[:3, 3])
+        R, t = self.cache["_cam_from_g"]
+        return self.frame.camera.project_cam(np.asarray(points_g, float).reshape(-1, 3) @ R.T + t)
 
 
 def valid_point(mask: np.ndarray, x0: int = 0, y0: int = 0, width: int | None = None,
