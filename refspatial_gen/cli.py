@@ -16,6 +16,7 @@ COMMAND_MODULES = [
     "refspatial_gen.shards.commands",
     "refspatial_gen.graph.commands",
     "refspatial_gen.sources.sim.commands",
+    "refspatial_gen.qa.commands",
 ]
 
 
