@@ -79,9 +79,13 @@ def pose_errors(est: dict[str, np.ndarray], ref: dict[str, np.ndarray]) -> dict[
             "max_centre_err_m": max(cerr), "max_rot_err_deg": max(rerr)}
 
 
-def run_sfm(image_dir: Path, work_dir: Path, camera_model: str = "PINHOLE", single_camera: bool = True):
+def run_sfm(image_dir: Path, work_dir: Path, camera_model: str = "PINHOLE", single_camera: bool = True,
+            camera_params: tuple[float, ...] | None = None):
     """SIFT features, exhaustive matching and incremental mapping; returns the largest Reconstruction
-    (written to work_dir/sparse/0). Slow: seconds per handful of images on CPU."""
+    (written to work_dir/sparse/0). Slow: seconds per handful of images on CPU.
+
+    `camera_params` (COLMAP order, corner-origin pixels, e.g. PINHOLE fx, fy, cx, cy) fixes a calibrated
+    camera's intrinsics: they are then not refined, which removes the focal/rotation ambiguity."""
     import pycolmap
 
     work_dir = Path(work_dir)
@@ -91,12 +95,19 @@ def run_sfm(image_dir: Path, work_dir: Path, camera_model: str = "PINHOLE", sing
         db.unlink()
     reader_opts = pycolmap.ImageReaderOptions()
     reader_opts.camera_model = camera_model
+    if camera_params is not None:
+        reader_opts.camera_params = ",".join(f"{float(x):.10g}" for x in camera_params)
     pycolmap.extract_features(db, image_dir, camera_mode=pycolmap.CameraMode.SINGLE if single_camera else pycolmap.CameraMode.AUTO,
                               reader_options=reader_opts, device=pycolmap.Device.cpu)
     pycolmap.match_exhaustive(db, device=pycolmap.Device.cpu)
     out = work_dir / "sparse"
     out.mkdir(exist_ok=True)
-    recs = pycolmap.incremental_mapping(db, image_dir, out)
+    opts = pycolmap.IncrementalPipelineOptions()
+    if camera_params is not None:
+        opts.ba_refine_focal_length = False
+        opts.ba_refine_principal_point = False
+        opts.ba_refine_extra_params = False
+    recs = pycolmap.incremental_mapping(db, image_dir, out, options=opts)
     if not recs:
         raise DropUnit("sfm_failed", f"COLMAP registered no images in {image_dir}")
     best = max(recs.values(), key=lambda r: r.num_reg_images())
