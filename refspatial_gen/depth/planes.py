@@ -25,8 +25,10 @@ class Plane:
 
 
 def ransac_plane(points: np.ndarray, rng: np.random.Generator, thresh: float, up: np.ndarray | None = None,
-                 max_tilt: float = np.deg2rad(40.0), iters: int = 256, score_points: int = 4000) -> Plane | None:
-    """Best plane (most inliers within `thresh`) whose normal lies within `max_tilt` of `up` (if given)."""
+                 max_tilt: float = np.deg2rad(40.0), iters: int = 256, score_points: int = 4000,
+                 vertical_to: np.ndarray | None = None) -> Plane | None:
+    """Best plane (most inliers within `thresh`) whose normal lies within `max_tilt` of `up` (if given),
+    or, with `vertical_to`, a vertical plane: normal within 10 degrees of perpendicular to that up."""
     P = np.asarray(points, np.float64)
     N = len(P)
     if N < 3:
@@ -41,6 +43,8 @@ def ransac_plane(points: np.ndarray, rng: np.random.Generator, thresh: float, up
         s = np.sign(n @ up)
         n = n * np.where(s == 0, 1.0, s)[:, None]
         ok &= (n @ up) >= np.cos(max_tilt)
+    if vertical_to is not None:
+        ok &= np.abs(n @ vertical_to) <= np.sin(np.deg2rad(10.0))
     if not ok.any():
         return None
     n, a = n[ok], a[ok]
@@ -61,6 +65,8 @@ def ransac_plane(points: np.ndarray, rng: np.random.Generator, thresh: float, up
             nn = -nn
         best_n, best_d = nn, float(-nn @ c0)
     if up is not None and best_n @ up < np.cos(max_tilt):
+        return None
+    if vertical_to is not None and abs(best_n @ vertical_to) > np.sin(np.deg2rad(10.0)):
         return None
     inl = np.flatnonzero(np.abs(P @ best_n + best_d) < thresh)
     return Plane(best_n, float(best_d), inl)

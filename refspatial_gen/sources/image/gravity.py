@@ -22,7 +22,8 @@ class GravityEstimate:
     known: bool
     origin: str  # "plane_ransac" | "prior" | "unknown"
     camera_height: float | None  # metres above the lowest horizontal plane found (or the prior)
-    planes: list[Plane] = field(default_factory=list)  # camera-frame planes, largest first
+    planes: list[Plane] = field(default_factory=list)  # camera-frame horizontal planes, largest first
+    walls: list[Plane] = field(default_factory=list)  # camera-frame vertical planes (n horizontal)
     detail: dict = field(default_factory=dict)
 
 
@@ -59,10 +60,34 @@ def estimate_gravity(points_cam: np.ndarray, rng: np.random.Generator, prior_up:
     if not planes:
         return None
     up = planes[0].n / np.linalg.norm(planes[0].n)
+    rest = np.ones(len(P), bool)
+    for pl in planes:
+        rest[pl.inliers] = False
+    walls = find_walls(P[rest], rng, up, thresh, need)
     heights = [pl.d for pl in planes]  # distance of the camera above each plane (n up, camera at origin)
     cam_h = float(max(heights)) if max(heights) > 0 else None
     tilt = float(np.rad2deg(np.arccos(np.clip(up @ prior_up, -1, 1))))
-    return GravityEstimate(up, True, "plane_ransac", cam_h, planes,
-                           {"plane_inliers": [int(len(p.inliers)) for p in planes],
+    return GravityEstimate(up, True, "plane_ransac", cam_h, planes, walls,
+                           {"walls": len(walls), "plane_inliers": [int(len(p.inliers)) for p in planes],
                             "plane_heights": [round(float(h), 4) for h in heights], "tilt_from_prior_deg": round(tilt, 3),
                             "threshold_m": round(thresh, 4)})
+
+
+def find_walls(points: np.ndarray, rng: np.random.Generator, up: np.ndarray, thresh: float, min_inliers: int,
+               max_walls: int = 2) -> list[Plane]:
+    """Up to `max_walls` large vertical planes (normal within 10 degrees of horizontal), largest first.
+    Lifting removes their points from box-annotated objects (the wall behind a bed)."""
+    from refspatial_gen.depth.planes import ransac_plane
+
+    P = np.asarray(points, float)
+    out: list[Plane] = []
+    remaining = np.arange(len(P))
+    for _ in range(max_walls):
+        if len(remaining) < min_inliers:
+            break
+        best = ransac_plane(P[remaining], rng, thresh, None, vertical_to=up)
+        if best is None or len(best.inliers) < min_inliers:
+            break
+        out.append(Plane(best.n, best.d, remaining[best.inliers]))
+        remaining = np.delete(remaining, best.inliers)
+    return out

@@ -177,7 +177,8 @@ def build_frame(coll: Collection, rec: ImageRecord, rng: np.random.Generator, cf
     """One annotated photo -> one Frame (or DropUnit)."""
     from refspatial_gen.depth import CameraPrior
     from refspatial_gen.sources.image.gravity import GravityEstimate, estimate_gravity, world_from_cam
-    from refspatial_gen.sources.image.lift import LiftParams, lift_points
+    from refspatial_gen.sources.image import lift as _lift
+    LiftParams, lift_object = _lift.LiftParams, _lift.lift_object
 
     cfg = _with_defaults(cfg)
     tm = timings if timings is not None else {}
@@ -218,7 +219,7 @@ def build_frame(coll: Collection, rec: ImageRecord, rng: np.random.Generator, cf
         if area < cfg["min_mask_area"] or area < cfg["min_mask_fraction"] * W * H:
             F.drop(c, "too_small")
         cands.append(c)
-    F.resolve_overlaps(cands)
+    F.resolve_overlaps([c for c in cands if c.segmentation])  # box annotations: claimed while lifting
     for c in cands:
         if c.reason is None and int(c.mask.sum()) < cfg["min_mask_area"]:
             F.drop(c, "too_small")
@@ -265,9 +266,6 @@ def build_frame(coll: Collection, rec: ImageRecord, rng: np.random.Generator, cf
                 F.drop(c, note.get("reason", "no_ground_contact"))
 
     # ---- gravity and world frame
-    things = np.zeros((H, W), bool)
-    for c in cands:
-        things |= c.mask
     grav: GravityEstimate
     mode = cfg["gravity"]
     if mode == "auto":
@@ -277,7 +275,7 @@ def build_frame(coll: Collection, rec: ImageRecord, rng: np.random.Generator, cf
         st = max(1, int(round(np.sqrt(H * W / 20000.0))))
         vs, us = np.mgrid[0:H:st, 0:W:st]
         z = depth[::st, ::st]
-        ok = (z > 0) & ~things[::st, ::st]
+        ok = z > 0  # object tops (tables, beds) are as good a gravity cue as the floor
         pts = np.stack([(us[ok] - intr.cx) * z[ok] / intr.fx, (vs[ok] - intr.cy) * z[ok] / intr.fy, z[ok]], axis=1)
         g = estimate_gravity(pts, rng, prior_up, cfg["max_tilt_deg"])
         if g is None:
@@ -292,29 +290,31 @@ def build_frame(coll: Collection, rec: ImageRecord, rng: np.random.Generator, cf
         grav = GravityEstimate(prior_up, False, "unknown", None, detail={"why": "gravity: none"})
     T = world_from_cam(grav.up_cam, grav.camera_height)
     cam = Camera(W, H, intr.fx, intr.fy, intr.cx, intr.cy, T, gravity_known=grav.known)
-    cam_xy = cam.position[:2]
     support_z = [float(cam.position[2] - pl.d) for pl in grav.planes]
+    Tcw = cam.cam_from_world
+    walls = [(Tcw[:3, :3].T @ w.n, float(w.n @ Tcw[:3, 3] + w.d)) for w in grav.walls]
 
     # ---- lifting
     params = LiftParams(max_points=cfg["max_points_per_object"], min_points=cfg["min_points"],
                         min_valid_fraction=cfg["min_valid_depth_fraction"], complete_depth=cfg["complete_depth"],
                         snap_distance=0.25 if cfg["snap_to_support"] else 0.0)
-    for c in live:
+    claimed = np.zeros((H, W), bool)  # box annotations: pixels already taken by a smaller box's object
+    for c in sorted(live, key=lambda c: (c.segmentation, int(c.mask.sum()), c.ann_id)):
         if c.reason is not None:
             continue
-        ys, xs = np.nonzero(c.mask)
+        ys, xs = np.nonzero(c.mask & ~claimed) if not c.segmentation else np.nonzero(c.mask)
         zz = depth[ys, xs]
         ok = zz > 0
         if ok.sum() < params.min_points or ok.mean() < params.min_valid_fraction:
             F.drop(c, "low_valid_depth")
             continue
         ys, xs, zz = ys[ok], xs[ok], zz[ok]
-        step = max(1, int(np.ceil(len(zz) / params.max_points)))
-        sel = np.arange(0, len(zz), step)
-        pc = cam.backproject(xs[sel], ys[sel], zz[sel])
-        world = cam.cam_to_world(pc)
-        pix_scale = float(np.median(zz[sel])) / intr.fx * np.sqrt(step)
-        out = lift_points(world, cam_xy, pix_scale, params, support_z)
+        weights = None
+        if not c.segmentation:  # box annotation: the object fills the box centre, clutter its rim
+            x0, y0, x1, y1 = c.bbox2d
+            cx_, cy_, hw, hh = (x0 + x1) / 2, (y0 + y1) / 2, (x1 - x0) / 4, (y1 - y0) / 4
+            weights = np.where((np.abs(xs - cx_) <= hw) & (np.abs(ys - cy_) <= hh), 1.0, 0.2)
+        out = lift_object(xs, ys, zz, cam, params, support_z, walls, weights)
         if isinstance(out, str):
             F.drop(c, out)
             continue
@@ -324,13 +324,14 @@ def build_frame(coll: Collection, rec: ImageRecord, rng: np.random.Generator, cf
         if not c.segmentation and est_name != "geometric":
             # a box annotation: the visible mask is the box pixels whose 3D point lies on the object
             allw = cam.cam_to_world(cam.backproject(xs, ys, zz))
-            vis = out.box.contains(allw, pad=0.03)
+            vis = out.keep_pixels & out.visible_box.contains(allw, pad=0.03)
             m = np.zeros((H, W), bool)
             m[ys[vis], xs[vis]] = True
             if m.sum() < cfg["min_mask_area"]:
                 F.drop(c, "no_cluster")
                 continue
             c.mask = m
+            claimed |= m
             c.provenance["mask"] = "box_refined_by_depth"
         else:
             c.provenance["mask"] = "segmentation" if c.segmentation else "box"
