@@ -128,6 +128,23 @@ def test_box_behind_camera_is_left_out(toy_frame):
                                       (behind[0], behind[1] + 0.1)], behind[2]) is None
 
 
+def test_plane_visibility_hides_the_table_behind_objects(toy_frame):
+    cam, depth = toy_frame.camera, toy_frame.depth
+    top = toy_frame.surfaces[0].top_z
+    vis = draw.plane_visibility(cam, depth, top)
+    vs, us = np.nonzero(depth > 0)
+    world = cam.cam_to_world(cam.backproject(us + 0.5, vs + 0.5, depth[vs, us]))
+    on_top = np.abs(world[:, 2] - top) < 1e-3  # pixels whose surface is the table top itself
+    assert on_top.sum() > 1000 and vis[vs[on_top], us[on_top]].mean() > 0.99
+    above = world[:, 2] > top + 0.03  # object surfaces 3 cm or more above the table hide it
+    assert above.sum() > 1000 and vis[vs[above], us[above]].mean() < 0.01
+    objects = np.zeros_like(vis)
+    for o in toy_frame.objects:
+        objects |= o.mask.decode()
+    assert vis[objects].mean() < 0.2  # thin objects (trays, books) within the depth tolerance excepted
+    assert draw.plane_visibility(cam, np.zeros_like(depth), top).sum() > 0.5 * depth.size  # unknown depth: seen
+
+
 def test_wrap_respects_width_and_keeps_every_word():
     f = draw.font(15)
     text = "Point to the red box that is left of the blue can and behind the tray " * 4

@@ -68,6 +68,25 @@ def project_polygon(camera: Camera, polygon_xy: Sequence[Sequence[float]], z: fl
     return uv
 
 
+def plane_visibility(camera: Camera, depth: np.ndarray, z: float, tol: float = 0.01) -> np.ndarray:
+    """Which pixels see the horizontal world plane at height z (not hidden by something nearer).
+
+    Each pixel's ray meets the plane at camera depth t; the plane is seen there when the measured
+    depth is unknown (0) or not nearer than t by more than `tol` metres plus 1%. Rays that never meet
+    the plane in front of the camera are False.
+    """
+    H, W = depth.shape
+    vs, us = np.mgrid[0:H, 0:W]
+    d_cam = np.stack([(us + 0.5 - camera.cx) / camera.fx, (vs + 0.5 - camera.cy) / camera.fy, np.ones((H, W))], -1)
+    R, o = camera.world_from_cam[:3, :3], camera.world_from_cam[:3, 3]
+    dz = d_cam @ R[2]  # world z component of each ray (camera z of the ray is 1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (z - o[2]) / dz
+    hits = np.isfinite(t) & (t > 1e-6)
+    seen = (depth <= 0) | (depth >= t - (tol + 0.01 * t))
+    return hits & seen
+
+
 def project_box_edges(camera: Camera, box: Box3D) -> list[tuple[np.ndarray, np.ndarray]]:
     """The box's 12 edges as pixel segments; edges with an end behind the camera are left out."""
     uv = project_points(camera, box.corners())
@@ -101,22 +120,36 @@ class Overlay:
     def _merge(self, layer: Image.Image) -> None:
         self.image = Image.alpha_composite(self.image, layer)
 
-    def polygon(self, uv: np.ndarray, color: RGB, fill_alpha: int = 70, width: int = 2) -> None:
-        """A translucent filled polygon with an opaque outline (pixel coordinates of the source image)."""
+    def polygon(self, uv: np.ndarray, color: RGB, fill_alpha: int = 70, width: int = 2,
+                visible: np.ndarray | None = None, hidden_alpha: float = 0.25) -> None:
+        """A translucent filled polygon with an opaque outline (pixel coordinates of the source image).
+
+        `visible` (bool, source-image size) marks where the polygon's surface is seen; elsewhere (behind
+        an object) the drawing fades to `hidden_alpha` of its opacity, so free space never seems to lie
+        on top of the objects standing in front of it.
+        """
         pts = [self._xy(u, v) for u, v in np.asarray(uv, float)]
         layer, d = self._layer()
         d.polygon(pts, fill=(*color, fill_alpha))
         d.line(pts + [pts[0]], fill=(*color, 255), width=width, joint="curve")
+        if visible is not None:
+            vis = Image.fromarray(np.asarray(visible, bool).astype(np.uint8) * 255, "L")
+            vis = np.asarray(vis.resize(self.image.size, Image.Resampling.NEAREST)) > 0
+            arr = np.array(layer)
+            arr[..., 3] = np.where(vis, arr[..., 3], (arr[..., 3] * hidden_alpha).astype(np.uint8))
+            layer = Image.fromarray(arr, "RGBA")
         self._merge(layer)
 
-    def rect(self, bbox: Sequence[float], color: RGB, width: int = 2, label: str | None = None) -> None:
-        """A 2D box (x0, y0, x1, y1) in pixels, exclusive max, as the data model stores it."""
+    def rect(self, bbox: Sequence[float], color: RGB, width: int = 2, label: str | None = None,
+             label_below: bool = False) -> None:
+        """A 2D box (x0, y0, x1, y1) in pixels, exclusive max, as the data model stores it; its label sits
+        above the top-left corner, or under the bottom-left one (so two boxes on one object stay readable)."""
         x0, y0 = self._xy(bbox[0], bbox[1])
         x1, y1 = self._xy(bbox[2], bbox[3])
         layer, d = self._layer()
         d.rectangle([x0, y0, x1 - 1, y1 - 1], outline=(*color, 255), width=width)
         if label:
-            self._label(d, x0, y0, label, color, above=True)
+            self._label(d, x0, y1 if label_below else y0, label, color, above=not label_below)
         self._merge(layer)
 
     def segments(self, segs: Iterable[tuple[np.ndarray, np.ndarray]], color: RGB, width: int = 2) -> None:

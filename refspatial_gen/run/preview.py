@@ -82,38 +82,78 @@ def _inside_polygon(uv: np.ndarray, x: float, y: float) -> bool:
     return cv2.pointPolygonTest(np.asarray(uv, np.float32).reshape(-1, 1, 2), (float(x), float(y)), False) >= 0
 
 
-def point_checks(sample: Sample, qa: QAPair) -> list[tuple[str, bool]]:
-    """Human-readable checks of each answer point against the scene, re-done from the stored data.
+def _is_placement(qa: QAPair) -> bool:
+    return qa.answer_struct.get("kind") == "region" or qa.family == "placement"
 
-    A point is on target when the pixel it denormalises to lies in a target's visible mask (the same
-    rule the generators follow); a placement point when it lies in its free-space region's projection.
-    Returns (text, passed) per answer point.
+
+def _marks(struct: dict[str, Any]) -> list[dict[str, Any]]:
+    """Visual-choice marks (`answer_struct.marks`) and option records carrying a point or a box."""
+    out = []
+    for i, m in enumerate(list(struct.get("marks") or []) + [o for o in struct.get("options") or [] if isinstance(o, dict)]):
+        if isinstance(m, dict):
+            out.append({**m, "label": str(m.get("label") or m.get("letter") or chr(ord("A") + i))})
+    return out
+
+
+def _mask_of(frame: Frame, oid: Any) -> np.ndarray | None:
+    try:
+        obj = frame.object(int(oid))
+    except (KeyError, TypeError, ValueError):
+        return None
+    return None if obj.mask is None else obj.mask.decode()
+
+
+def point_checks(sample: Sample, qa: QAPair) -> list[tuple[str, bool]]:
+    """Human-readable checks of the answer against the stored scene, re-done here independently.
+
+    - an object point (`kind: points`) must denormalise to a pixel inside a target's visible mask
+      (`answer_struct.object_ids`, else `QAPair.targets`): the rule the generators follow;
+    - a placement point (`kind: region`) must fall inside its free-space region's projection;
+    - a visual-choice mark must sit on its object's mask, and the correct letter must name a target.
+    Returns (text, passed) per check.
     """
     frame = _answer_frame(sample, qa)
     W, H = frame.camera.width, frame.camera.height
-    masks = []
-    for oid in qa.targets:
-        try:
-            obj = frame.object(int(oid))
-        except KeyError:
-            continue
-        if obj.mask is not None:
-            masks.append((oid, obj.mask.decode()))
-    region = _region_of_answer(qa.answer_struct, _graph_for(sample, frame))
-    region_uv = None if region is None else draw.project_polygon(frame.camera, region.polygon_xy, region.z)
-    out = []
-    for k, (x, y) in enumerate(answer_points(qa.answer_struct), 1):
+    struct = qa.answer_struct
+    out: list[tuple[str, bool]] = []
+    if _is_placement(qa):
+        region = _region_of_answer(struct, _graph_for(sample, frame))
+        region_uv = None if region is None else draw.project_polygon(frame.camera, region.polygon_xy, region.z)
+        for k, (x, y) in enumerate(answer_points(struct), 1):
+            px, py = denormalise_point(x, y, W, H)
+            head = f"point {k} ({x:.3f}, {y:.3f}) -> pixel ({px}, {py})"
+            if region_uv is None:
+                out.append((f"{head}; free-space region: NOT FOUND", False))
+            else:
+                inside = _inside_polygon(region_uv, px + 0.5, py + 0.5)
+                out.append((f"{head}; in free-space region: " + ("yes" if inside else "NO"), inside))
+        return out
+    ids = struct.get("object_ids") or qa.targets
+    masks = [(int(oid), m) for oid in ids if (m := _mask_of(frame, oid)) is not None]
+    for k, (x, y) in enumerate(answer_points(struct), 1):
         px, py = denormalise_point(x, y, W, H)
-        parts, ok = [f"point {k} ({x:.3f}, {y:.3f}) -> pixel ({px}, {py})"], True
-        if masks:
-            hit = [oid for oid, m in masks if m[py, px]]
-            parts.append(f"in target mask #{hit[0]}: yes" if hit else "in a target mask: NO")
-            ok = ok and bool(hit)
-        if region_uv is not None:
-            inside = _inside_polygon(region_uv, px + 0.5, py + 0.5)
-            parts.append("in free-space region: " + ("yes" if inside else "NO"))
-            ok = ok and inside
-        out.append(("; ".join(parts), ok))
+        head = f"point {k} ({x:.3f}, {y:.3f}) -> pixel ({px}, {py})"
+        if not masks:
+            out.append((f"{head}; no target mask to check", True))
+            continue
+        hit = [oid for oid, m in masks if m[py, px]]
+        out.append((f"{head}; in target mask #{hit[0]}: yes" if hit else f"{head}; in a target mask: NO", bool(hit)))
+    letter = struct.get("letter")
+    for m in _marks(struct):
+        view = int(m.get("view", 0) or 0)
+        f = sample.frames[view] if 0 <= view < len(sample.frames) else None
+        oid = m.get("object_id")
+        if f is None or oid is None or not isinstance(m.get("point"), (list, tuple)):
+            continue
+        mask = _mask_of(f, oid)
+        px, py = denormalise_point(float(m["point"][0]), float(m["point"][1]), f.camera.width, f.camera.height)
+        ok = mask is not None and bool(mask[py, px])
+        text = f"mark ({m['label']}) #{oid}: point in its mask: {'yes' if ok else 'NO'}"
+        if m["label"] == letter and qa.targets:
+            is_target = int(oid) in [int(t) for t in qa.targets]
+            text += f"; correct mark is the target: {'yes' if is_target else 'NO'}"
+            ok = ok and is_target
+        out.append((text, ok))
     return out
 
 
@@ -124,54 +164,74 @@ def _draw_frame(sample: Sample, qa: QAPair, frame: Frame, answer_frame: bool) ->
     cam = frame.camera
     W, H = cam.width, cam.height
     used: set[str] = set()
+    struct = qa.answer_struct
+    placement = _is_placement(qa)
     graph = _graph_for(sample, frame)
-    region = _region_of_answer(qa.answer_struct, graph) if answer_frame else None
-    for r in (graph.free_space if graph is not None else []):
-        uv = draw.project_polygon(cam, r.polygon_xy, r.z)
-        if uv is not None and (region is None or r is not region):
-            ov.polygon(uv, draw.FREE_SPACE, fill_alpha=45, width=1)
-            used.add("free")
-    if region is not None:
-        uv = draw.project_polygon(cam, region.polygon_xy, region.z)
-        if uv is not None:
-            ov.polygon(uv, draw.ANSWER_REGION, fill_alpha=90, width=3)
-            used.add("region")
+    if placement:  # free space matters (and is readable) only where the question is about it
+        region = _region_of_answer(struct, graph) if answer_frame else None
+        seen: dict[float, np.ndarray] = {}
+
+        def visible(z: float) -> np.ndarray:
+            if z not in seen:
+                seen[z] = draw.plane_visibility(cam, frame.depth, z)
+            return seen[z]
+
+        for r in (graph.free_space if graph is not None else []):
+            uv = draw.project_polygon(cam, r.polygon_xy, r.z)
+            if uv is not None and (region is None or r is not region):
+                ov.polygon(uv, draw.FREE_SPACE, fill_alpha=0, width=1, visible=visible(float(r.z)))  # outlines: regions overlap
+                used.add("free")
+        if region is not None:
+            uv = draw.project_polygon(cam, region.polygon_xy, region.z)
+            if uv is not None:
+                ov.polygon(uv, draw.ANSWER_REGION, fill_alpha=90, width=3, visible=visible(float(region.z)))
+                used.add("region")
     if answer_frame:
         for oid in qa.targets:
             try:
                 obj = frame.object(int(oid))
             except KeyError:
                 continue
+            role = "anchor" if placement else "target"  # a placement answer is free space near its anchors
             ov.segments(draw.project_box_edges(cam, obj.box), draw.TARGET_3D, width=2)
-            used.add("box3d")
+            used.add(f"{role}3d")
             if obj.bbox2d is not None:
-                ov.rect(obj.bbox2d, draw.TARGET_2D, width=2, label=f"#{obj.id} {obj.category}")
-                used.add("box2d")
-        for opt_i, opt in enumerate(qa.answer_struct.get("options") or []):
-            if not isinstance(opt, dict):
-                continue
-            name = str(opt.get("label") or opt.get("letter") or chr(ord("A") + opt_i))
-            if isinstance(opt.get("point"), (list, tuple)) and len(opt["point"]) == 2:
-                ov.point(float(opt["point"][0]) * W, float(opt["point"][1]) * H, draw.OPTION, f"({name})", radius=5)
-                used.add("option")
-            box = opt.get("bbox2d") or opt.get("box")
-            if isinstance(box, (list, tuple)) and len(box) == 4:
-                ov.rect(box, draw.OPTION, width=2, label=f"({name})")
-                used.add("option")
+                ov.rect(obj.bbox2d, draw.TARGET_2D, width=2, label=f"{'anchor ' if placement else ''}#{obj.id} {obj.category}")
+                used.add(f"{role}2d")
+    view = next((i for i, f in enumerate(sample.frames) if f is frame), -1)
+    for m in _marks(struct):
+        if int(m.get("view", 0) or 0) != view:
+            continue
+        correct = m["label"] == struct.get("letter")
+        color, width = (draw.ANSWER, 4) if correct else (draw.OPTION, 2)
+        box = m.get("box") or m.get("bbox2d")
+        if isinstance(box, (list, tuple)) and len(box) == 4:
+            ov.rect(box, color, width=width, label=f"({m['label']})", label_below=True)
+        elif isinstance(m.get("point"), (list, tuple)) and len(m["point"]) == 2:
+            ov.point(float(m["point"][0]) * W, float(m["point"][1]) * H, color, f"({m['label']})", radius=6)
+        else:
+            continue
+        used.add("answer_mark" if correct else "option")
+    if answer_frame:
+        pts = answer_points(struct)
         for k, ks in enumerate(qa.key_steps, 1):
-            if ks.type == "Position" and len(ks.value) == 2:
-                ov.point(ks.value[0] * W, ks.value[1] * H, draw.KEY_STEP, f"s{k}", radius=9, hollow=True)
-                used.add("step")
-        for k, (x, y) in enumerate(answer_points(qa.answer_struct), 1):
-            ov.point(x * W, y * H, draw.ANSWER, f"A{k}" if len(answer_points(qa.answer_struct)) > 1 else "A")
+            if ks.type != "Position" or len(ks.value) != 2:
+                continue
+            if any(abs(ks.value[0] - x) * W < 1.5 and abs(ks.value[1] - y) * H < 1.5 for x, y in pts):
+                continue  # the answer marker is drawn there
+            ov.point(ks.value[0] * W, ks.value[1] * H, draw.KEY_STEP, f"s{k}", radius=9, hollow=True)
+            used.add("step")
+        for k, (x, y) in enumerate(pts, 1):
+            ov.point(x * W, y * H, draw.ANSWER, f"A{k}" if len(pts) > 1 else "A")
             used.add("answer")
     return ov.rgb(), used
 
 
-_LEGEND = [("answer", draw.ANSWER, "answer point"), ("region", draw.ANSWER_REGION, "answer region"),
-           ("free", draw.FREE_SPACE, "free space"), ("box2d", draw.TARGET_2D, "target 2D box"),
-           ("box3d", draw.TARGET_3D, "target 3D box"), ("step", draw.KEY_STEP, "trace position"),
-           ("option", draw.OPTION, "choice option")]
+_LEGEND = [("answer", draw.ANSWER, "answer point"), ("answer_mark", draw.ANSWER, "correct mark"),
+           ("option", draw.OPTION, "other marks"), ("region", draw.ANSWER_REGION, "answer region"),
+           ("free", draw.FREE_SPACE, "free space"), ("target2d", draw.TARGET_2D, "target 2D box"),
+           ("target3d", draw.TARGET_3D, "target 3D box"), ("anchor2d", draw.TARGET_2D, "anchor 2D box"),
+           ("anchor3d", draw.TARGET_3D, "anchor 3D box"), ("step", draw.KEY_STEP, "trace position")]
 
 
 def _struct_text(struct: dict[str, Any]) -> str:
