@@ -179,3 +179,25 @@ def test_external_ycb_meshes_render_and_settle(shared_data):
                 ys, xs = np.nonzero(o.mask.decode())
                 pts = f.camera.cam_to_world(f.camera.backproject(xs + 0.5, ys + 0.5, f.depth[ys, xs]))
                 assert o.box.contains(pts, pad=0.002).mean() > 0.999
+
+
+def test_usd_export_and_assets_list(tmp_path: Path, capsys):
+    from pxr import Usd, UsdGeom
+
+    from refspatial_gen.cli import main
+
+    assert main(["assets", "list", "--json"]) == 0
+    import json
+
+    rows = json.loads(capsys.readouterr().out)["categories"]
+    assert len(rows) >= 40 and any(r["front_phrase"] == "the handle side" for r in rows)
+    out = tmp_path / "scene.usda"
+    assert main(["sim", "usd", "--unit", "sim:000003", "--seed", "7", "--out", str(out), "--views", "1"]) == 0
+    stage = Usd.Stage.Open(str(out))
+    objs = [p for p in stage.Traverse() if p.HasAttribute("refspatial:category")]
+    assert len(objs) >= 3
+    cache = UsdGeom.BBoxCache(Usd.TimeCode.Default(), [UsdGeom.Tokens.default_])
+    for p in objs:
+        size = cache.ComputeWorldBound(p).ComputeAlignedRange().GetSize()
+        assert 0.003 < max(size) < 2.0
+    assert any(p.IsA(UsdGeom.Camera) for p in stage.Traverse())

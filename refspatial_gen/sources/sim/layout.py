@@ -18,6 +18,7 @@ from shapely import affinity
 from refspatial_gen.assets import AssetGeometry, Catalog, Category, build_geometry
 from refspatial_gen.assets.external import external_available
 
+CONTAINER_BUILDERS = ("open_box", "vessel")  # builders whose geometry has a cavity others can go into
 CLEARANCE = 0.012  # metres between footprints on one surface
 DROP_GAP = 0.002  # objects start this far above their support
 
@@ -245,23 +246,35 @@ class LayoutBuilder:
         return None
 
     def fill(self, surfaces: list[Surface], n: int, scale: str = "tabletop") -> None:
-        """Place `n` objects on the given surfaces, stacking and filling containers now and then."""
+        """Place `n` objects on the given surfaces (tables weigh 3x shelves and counters), stacking and
+        filling containers now and then."""
         rng = self.rng
+        sw = np.array([3.0 if s.kind == "table" else 1.0 for s in surfaces])
         stack_p, inside_p = self.cfg.get("stack_prob", 0.25), self.cfg.get("inside_prob", 0.3)
         placed, attempts = 0, 0
         while placed < n and attempts < 4 * n + 10:
             attempts += 1
             mine = [o for o in self.objects if o.support in {s.id for s in surfaces}]
-            containers = [o for o in mine if o.geometry.cavity is not None and len(o.top_fps) < 2]
+            containers = [o for o in mine if o.geometry.cavity is not None and len(o.top_fps) < 2
+                          and min(o.geometry.cavity[1][:2]) > 0.075]
             flats = [o for o in mine if o.geometry.flat_top and len(o.top_fps) < 2]
             r = rng.random()
             obj = None
             if containers and r < inside_p:
-                obj = self.put_inside(containers[int(rng.integers(len(containers)))], self.pick_category(scale, want_inside=True))
+                box = containers[int(rng.integers(len(containers)))]
+                for _ in range(3):  # a few categories: not every small thing fits every container
+                    obj = self.put_inside(box, self.pick_category(scale, want_inside=True))
+                    if obj is not None:
+                        break
+            elif r < inside_p and scale == "tabletop":  # no container yet: bring one, to be filled next
+                boxes = [n for n in self.cat.names(scale) if self.cat.categories[n].builder in CONTAINER_BUILDERS]
+                if boxes:
+                    cat = self.cat.categories[boxes[int(rng.integers(len(boxes)))]]
+                    obj = self.place_on_surface(surfaces[int(rng.choice(len(surfaces), p=sw / sw.sum()))], cat)
             elif flats and r < inside_p + stack_p:
                 obj = self.stack_on(flats[int(rng.integers(len(flats)))], self.pick_category(scale))
             else:
-                obj = self.place_on_surface(surfaces[int(rng.integers(len(surfaces)))], self.pick_category(scale))
+                obj = self.place_on_surface(surfaces[int(rng.choice(len(surfaces), p=sw / sw.sum()))], self.pick_category(scale))
             placed += obj is not None
 
 

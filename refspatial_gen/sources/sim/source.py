@@ -46,8 +46,8 @@ CONFIG_FIELDS: dict[str, Field] = {
     "catalog": Field(str, default="", doc="asset catalog YAML (default assets/catalog.yaml)"),
     "external_prob": Field(float, default=0.0, min=0, max=1, doc="chance that a tabletop object is an external mesh (YCB, ...)"),
     "repeat_prob": Field(float, default=0.3, min=0, max=1, doc="chance to repeat a category already in the scene"),
-    "stack_prob": Field(float, default=0.2, min=0, max=1),
-    "inside_prob": Field(float, default=0.25, min=0, max=1),
+    "stack_prob": Field(float, default=0.25, min=0, max=1),
+    "inside_prob": Field(float, default=0.3, min=0, max=1),
     "edge_prob": Field(float, default=0.3, min=0, max=1, doc="chance to place an object near an edge or corner"),
     "face_prob": Field(float, default=0.35, min=0, max=1, doc="chance that an object with a front faces another object"),
     "settle_max_steps": Field(int, default=3000, min=100, doc="physics step cap; unsettled scenes are dropped"),
@@ -102,9 +102,8 @@ def generate(unit_key: str, rng: np.random.Generator, config: dict[str, Any], ti
             raise DropUnit("object_escaped", f"{desc.objects[k].category.name} left the scene")
     focus = [s for s in desc.surfaces if s.id in desc.focus]
     on_focus = [b.center for b, _ in boxes]
-    target = np.mean(on_focus, axis=0) if kind == "tabletop" else np.r_[focus[0].center, focus[0].z]
-    if kind == "tabletop":
-        target[2] = focus[0].z
+    target = np.mean(on_focus, axis=0)  # aim at the objects, at the height of the main table top
+    target[2] = focus[0].z
     from refspatial_gen.core.geometry import Box3D
 
     blockers = [b for b, _ in boxes] + [Box3D(sb.center, 2 * sb.half, np.eye(3)) for sb in desc.statics]
