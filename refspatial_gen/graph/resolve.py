@@ -1,0 +1,212 @@
+"""An independent resolver for referring phrases: phrase + scene -> the ids of every object it could mean.
+
+Why independent: a phrase generator that checks its own output proves nothing. This module parses the
+phrase text and measures the scene itself (mask centroids, box corners through the camera, box heights
+and volumes, sampled box-to-box distances, centre-over-footprint support), sharing only the threshold
+values with the generator. Wherever two objects are within a tolerance (half the generator's margin) of
+each other on the quantity a phrase ranks by, both are returned, so a phrase that is not robustly unique
+resolves to several objects. Accepts a Frame (measures pixels and boxes) or a SceneGraph (reads the
+measured node attributes and stored distances).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from refspatial_gen.core.geometry import Box3D, box_distance
+from refspatial_gen.core.model import Frame, SceneGraph
+
+SUPERLATIVES = {  # word -> (feature, pick the largest?)
+    "tallest": ("height", True), "shortest": ("height", False), "biggest": ("volume", True),
+    "smallest": ("volume", False), "leftmost": ("img_x", False), "rightmost": ("img_x", True),
+    "nearest": ("near", False), "farthest": ("near", True),
+}
+ORDINALS = {"second": 2, "third": 3}
+_REL = re.compile(r"^(?P<base>.+?) (?P<rel>closest to|farthest from|on) (?P<anchor>the .+)$")
+_ORD_SIDE = re.compile(r"^(?P<ord>second|third) (?P<base>.+) from the (?P<side>left|right)$")
+_ORD_DEPTH = re.compile(r"^(?P<ord>second|third) (?P<dir>nearest|farthest) (?P<base>.+)$")
+
+
+@dataclass
+class _Scene:
+    ids: list[int]
+    cats: list[str]
+    colours: list[str | None]
+    feats: dict[str, np.ndarray]  # img_x, near, height, volume
+    tol: dict[str, float]
+    surfaces: dict[str, tuple[float, np.ndarray]]  # name -> (top z, CCW polygon)
+    dist: callable
+    on: callable  # on(i, anchor) -> bool where anchor is ("obj", j) or ("surface", name)
+
+
+def _norm(cat: str) -> str:
+    return cat.replace("_", " ").strip().lower()
+
+
+def _tolerances(th: dict) -> dict[str, float]:
+    return {"img_x": th["image_margin"] / 4, "near": th["depth_margin"] / 2,
+            "height_abs": th["height_margin_abs"] / 2, "height_rel": th["size_margin_rel"] / 2,
+            "volume_rel": th["volume_margin_rel"] / 2, "dist": th["anchor_distance_margin"] / 2,
+            "support_gap": th["support_gap"]}
+
+
+def _from_frame(frame: Frame) -> _Scene:
+    from refspatial_gen.graph.builder import decide_scale
+    from refspatial_gen.graph.colour import colour_word, hsv_image, mask_hsv
+    from refspatial_gen.graph.constants import thresholds_for
+    from refspatial_gen.graph.gravity import resolve_gravity
+
+    th = thresholds_for(decide_scale(frame), frame.source).to_json()
+    G = resolve_gravity(frame).rotation
+    cam = frame.camera
+    hsv = hsv_image(frame.rgb)
+    boxes = [Box3D(G @ o.box.center, o.box.size, G @ o.box.rotation) for o in frame.objects]
+    img_x, near, cols = [], [], []
+    for o in frame.objects:
+        m = o.mask.decode() if o.mask is not None else None
+        if m is not None and m.any():
+            img_x.append((np.nonzero(m)[1].mean() + 0.5) / cam.width)
+            cols.append(colour_word(mask_hsv(hsv, m), o.attributes.get("color"))[0])
+        else:
+            uv, _ = cam.project(o.box.center[None])
+            img_x.append((uv[0, 0] + 0.5) / cam.width)
+            cols.append(None)
+        near.append(cam.world_to_cam(o.box.corners())[:, 2].min())
+    feats = {"img_x": np.array(img_x), "near": np.array(near),
+             "height": np.array([b.aabb()[1][2] - b.aabb()[0][2] for b in boxes]),
+             "volume": np.array([float(np.prod(b.size)) for b in boxes])}
+    surfaces = {}
+    for s in frame.surfaces:
+        sb = Box3D(G @ s.box.center, s.box.size, G @ s.box.rotation)
+        surfaces[(s.name or f"the {s.kind}").lower()] = (sb.top_z, sb)
+
+    def dist(i: int, j: int) -> float:
+        return box_distance(boxes[i], boxes[j], n=9)
+
+    def on(i: int, anchor) -> bool:
+        bottom = boxes[i].aabb()[0][2]
+        c = boxes[i].center
+        if anchor[0] == "obj":
+            j = anchor[1]
+            top, sbox = boxes[j].aabb()[1][2], boxes[j]
+        else:
+            top, sbox = surfaces[anchor[1]]
+        probe = np.array([[c[0], c[1], sbox.center[2]]])
+        inside_xy = bool(np.all(np.abs(sbox.to_local(probe)[0, :2]) <= sbox.size[:2] / 2 + 1e-9)) if abs(sbox.rotation[2, 2]) > 0.99 \
+            else bool(sbox.contains(probe)[0])
+        return abs(bottom - top) <= th["support_gap"] and inside_xy
+
+    return _Scene([o.id for o in frame.objects], [_norm(o.category) for o in frame.objects], cols, feats,
+                  _tolerances(th), surfaces, dist, on)
+
+
+def _from_graph(graph: SceneGraph) -> _Scene:
+    th = graph.meta["thresholds"]
+    nodes = sorted(graph.nodes, key=lambda n: n.object_id)
+    ids = [n.object_id for n in nodes]
+    pos = {k: i for i, k in enumerate(ids)}
+    a = [n.attributes for n in nodes]
+    feats = {"img_x": np.array([x["img_xy"][0] for x in a]), "near": np.array([x["near_depth"] for x in a]),
+             "height": np.array([x["height"] for x in a]), "volume": np.array([x["volume"] for x in a])}
+    d = {}
+    for f in graph.facts:
+        if f.relation == "distance":
+            d[(pos[f.args[0]], pos[f.args[1]])] = d[(pos[f.args[1]], pos[f.args[0]])] = f.value
+    names = {}
+    for sid, s in graph.meta.get("surfaces", {}).items():
+        names[sid] = sid
+    sup = {pos[n.object_id]: n.support for n in nodes}
+
+    def on(i: int, anchor) -> bool:
+        s = sup[i]
+        if anchor[0] == "obj":
+            return s == f"obj:{ids[anchor[1]]}"
+        return s is not None and (s == anchor[1] or f"the {s}" == anchor[1])
+
+    return _Scene(ids, [_norm(n.category) for n in nodes], [x.get("color") for x in a], feats, _tolerances(th),
+                  {f"the {k}": (0.0, None) for k in names}, lambda i, j: d.get((i, j), np.inf), on)
+
+
+def _base(sc: _Scene, text: str) -> list[int] | None:
+    """Objects matching "[colour] category"; None when the text is not such a phrase."""
+    cats = set(sc.cats)
+    if text in cats:
+        return [i for i in range(len(sc.ids)) if sc.cats[i] == text]
+    head, _, rest = text.partition(" ")
+    if rest in cats:
+        return [i for i in range(len(sc.ids)) if sc.cats[i] == rest and sc.colours[i] == head]
+    return None
+
+
+def _within(values: np.ndarray, target: float, tol: np.ndarray | float) -> np.ndarray:
+    return np.abs(values - target) <= tol
+
+
+def _tol(sc: _Scene, feat: str, v: np.ndarray, ref: float) -> np.ndarray:
+    if feat == "height":
+        return np.maximum(sc.tol["height_abs"], sc.tol["height_rel"] * np.maximum(v, ref))
+    if feat == "volume":
+        return sc.tol["volume_rel"] * np.maximum(v, ref)
+    return np.full(len(v), sc.tol[feat])
+
+
+def _superlative(sc: _Scene, members: list[int], feat: str, largest: bool, rank: int = 1) -> list[int]:
+    if len(members) < rank:
+        return []
+    v = sc.feats[feat][members]
+    order = np.argsort(-v if largest else v, kind="stable")
+    target = v[order[rank - 1]]
+    close = _within(v, target, _tol(sc, feat, v, target))
+    return [members[k] for k in np.flatnonzero(close)]
+
+
+def _resolve(sc: _Scene, phrase: str) -> list[int]:
+    p = " ".join(phrase.lower().split())
+    if not p.startswith("the "):
+        return []
+    body = p[4:]
+    m = _REL.match(body)
+    if m and _base(sc, m["base"]) is not None:
+        members = _base(sc, m["base"])
+        anchor_text = m["anchor"]
+        if m["rel"] == "on" and anchor_text in sc.surfaces:
+            return [i for i in members if sc.on(i, ("surface", anchor_text))]
+        anchors = _resolve(sc, anchor_text)
+        if len(anchors) != 1:
+            return []
+        a = anchors[0]
+        members = [i for i in members if i != a]
+        if m["rel"] == "on":
+            return [i for i in members if sc.on(i, ("obj", a))]
+        d = np.array([sc.dist(i, a) for i in members])
+        if not len(d):
+            return []
+        target = d.min() if m["rel"] == "closest to" else d.max()
+        return [members[k] for k in np.flatnonzero(_within(d, target, sc.tol["dist"]))]
+    m = _ORD_SIDE.match(body)
+    if m and _base(sc, m["base"]) is not None:
+        return _superlative(sc, _base(sc, m["base"]), "img_x", m["side"] == "right", ORDINALS[m["ord"]])
+    m = _ORD_DEPTH.match(body)
+    if m and _base(sc, m["base"]) is not None:
+        return _superlative(sc, _base(sc, m["base"]), "near", m["dir"] == "farthest", ORDINALS[m["ord"]])
+    head, _, rest = body.partition(" ")
+    if head in SUPERLATIVES and _base(sc, rest) is not None:
+        feat, largest = SUPERLATIVES[head]
+        return _superlative(sc, _base(sc, rest), feat, largest)
+    members = _base(sc, body)
+    return [] if members is None else members
+
+
+def resolve_phrase(phrase: str, frame_or_graph: Frame | SceneGraph) -> list[int]:
+    """Ids of every object the phrase could refer to (exactly one for a good referring phrase)."""
+    sc = _from_frame(frame_or_graph) if isinstance(frame_or_graph, Frame) else _from_graph(frame_or_graph)
+    return sorted(sc.ids[i] for i in _resolve(sc, phrase))
+
+
+def resolver(frame_or_graph: Frame | SceneGraph):
+    """A resolve function bound to one scene (measures the scene once; for checking many phrases)."""
+    sc = _from_frame(frame_or_graph) if isinstance(frame_or_graph, Frame) else _from_graph(frame_or_graph)
+    return lambda phrase: sorted(sc.ids[i] for i in _resolve(sc, phrase))
