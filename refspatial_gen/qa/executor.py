@@ -102,17 +102,33 @@ def _binary_args(rel: str, x: int, y: int, anchor: int | None) -> tuple:
 
 
 def _winner(cands, rel: str, anchor: int | None, idx: SceneIndex) -> int:
-    """The one candidate for which rel(x, y[, anchor]) holds against every other; undecided -> Reject."""
+    """The one candidate for which rel(x, y[, anchor]) decidedly holds against every other. Undecided
+    comparisons between two losers do not matter; if no candidate wins and one was undecided -> margin."""
     cands = sorted(cands)
     if not cands:
         raise Reject("empty")
+    # a quick elimination pass finds the only possible winner, then it is checked against everyone
     best = cands[0]
     for y in cands[1:]:
-        if not idx.holds(rel, _binary_args(rel, best, y, anchor)):
+        f = idx.fact(rel, _binary_args(rel, best, y, anchor))
+        if f is None:
+            raise Reject("no_fact")
+        if f.holds is False or f.holds is None and idx.fact(rel, _binary_args(rel, y, best, anchor)) is not None \
+                and idx.fact(rel, _binary_args(rel, y, best, anchor)).holds is True:
             best = y
+    undecided = False
     for y in cands:
-        if y != best and not idx.holds(rel, _binary_args(rel, best, y, anchor)):
+        if y == best:
+            continue
+        f = idx.fact(rel, _binary_args(rel, best, y, anchor))
+        if f is None:
+            raise Reject("no_fact")
+        if f.holds is None:
+            undecided = True
+        elif not f.holds:
             raise Reject("no_winner")
+    if undecided:
+        raise Reject("margin")
     return best
 
 

@@ -40,6 +40,14 @@ class _Fail(Exception):
     pass
 
 
+def _one(x: Any) -> int:
+    if isinstance(x, (frozenset, set, list)):
+        if len(x) != 1:
+            raise _Fail(f"the described object is not unique: {sorted(x)}")
+        return int(next(iter(x)))
+    return int(x)
+
+
 def _steps_of(program: list[dict]) -> int:
     n = 0
     for st in program:
@@ -251,10 +259,10 @@ class _Run:
         if op == "free_space":
             return ("free", st.get("out", {}).get("region") or a.get("region"))
         if op == "compare":
-            rel = a["relation"]
+            rel, x, y = a["relation"], _one(a["a"]), _one(a["b"])
             if rel in ANCHORED:
-                return w.holds(rel, a["a"], a["b"], a["anchor"])
-            return w.holds(rel, a["a"], a["b"])
+                return w.holds(rel, x, y, a["anchor"])
+            return w.holds(rel, x, y)
         if op == "all":
             vals = [v for v in a["of"] if v is not None]
             if not vals:
@@ -294,21 +302,22 @@ class _Run:
         raise _Fail(f"unknown op {op!r}")
 
     def _most(self, cands: list, rel: str, anchor: Any) -> Any:
+        """The candidate that decidedly wins against every other. Comparisons between two losers may be
+        undecided (they do not change the answer); an undecided comparison of the winner may not."""
         w = self.w
-        winners = []
+        winners, undecided = [], []
         for x in cands:
-            ok = True
-            for y in cands:
-                if y == x:
-                    continue
-                if not (w.holds(rel, x, y, anchor) if rel in ANCHORED else w.holds(rel, x, y)):
-                    ok = False
-                    break
-            if ok:
-                winners.append(x)
-        if len(winners) != 1:
-            raise _Fail(f"no single {rel} winner among {cands}")
-        return winners[0]
+            try:
+                if all(w.holds(rel, x, y, anchor) if rel in ANCHORED else w.holds(rel, x, y)
+                       for y in cands if y != x):
+                    winners.append(x)
+            except _Undecided as e:
+                undecided.append(str(e))
+        if len(winners) == 1:
+            return winners[0]
+        if undecided:
+            raise _Undecided(undecided[0])
+        raise _Fail(f"no single {rel} winner among {cands}")
 
 
 # ------------------------------------------------------------------------------------------ checks
