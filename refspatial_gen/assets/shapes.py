@@ -12,6 +12,7 @@ Object frame: origin at the bottom centre, z up, +x is the side a category's sem
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Callable
 
 import numpy as np
@@ -77,26 +78,39 @@ class Part:
     texture: str | None = None  # image file for `uv`
 
     def trimesh(self) -> trimesh.Trimesh:
-        """This part as a triangle mesh in the object frame (for boxes, silhouettes and USD)."""
+        """This part as a triangle mesh in the object frame (for boxes, silhouettes and USD); built once."""
+        if getattr(self, "_tm", None) is None:
+            self._tm = self._make_trimesh()
+        return self._tm
+
+    def _make_trimesh(self) -> trimesh.Trimesh:
         if self.kind == "mesh":
-            m = self.mesh.copy()
-        elif self.kind == "box":
-            m = trimesh.creation.box(extents=2 * np.asarray(self.size[:3]))
-        elif self.kind == "cylinder":
-            m = trimesh.creation.cylinder(radius=self.size[0], height=2 * self.size[1], sections=24)
+            v, f = np.asarray(self.mesh.vertices, float), np.asarray(self.mesh.faces)
         elif self.kind == "capsule":
             m = trimesh.creation.capsule(radius=self.size[0], height=2 * self.size[1], count=[12, 12])
-        elif self.kind == "sphere":
-            m = trimesh.creation.icosphere(subdivisions=2, radius=self.size[0])
-        elif self.kind == "ellipsoid":
-            m = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
-            m.apply_scale(np.asarray(self.size[:3]))
+            v, f = np.asarray(m.vertices), np.asarray(m.faces)
         else:
-            raise ValueError(f"unknown part kind {self.kind}")
-        T = np.eye(4)
-        T[:3, :3], T[:3, 3] = self.rot, self.pos
-        m.apply_transform(T)
-        return m
+            uv, f = _unit_mesh(self.kind)
+            scale = {"box": lambda z: np.asarray(z[:3]), "cylinder": lambda z: np.array([z[0], z[0], z[1]]),
+                     "sphere": lambda z: np.array([z[0]] * 3), "ellipsoid": lambda z: np.asarray(z[:3])}
+            if self.kind not in scale:
+                raise ValueError(f"unknown part kind {self.kind}")
+            v = uv * scale[self.kind](self.size)
+        return trimesh.Trimesh(v @ np.asarray(self.rot).T + self.pos, f, process=False)
+
+
+@lru_cache(maxsize=8)
+def _unit_mesh(kind: str) -> tuple[np.ndarray, np.ndarray]:
+    """Unit primitives (half extent / radius 1), built once per process and scaled per part."""
+    if kind == "box":
+        m = trimesh.creation.box(extents=[2, 2, 2])
+    elif kind == "cylinder":
+        m = trimesh.creation.cylinder(radius=1.0, height=2.0, sections=24)
+    else:
+        m = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
+    v, f = np.asarray(m.vertices, float), np.asarray(m.faces)
+    v.flags.writeable = False
+    return v, f
 
 
 @dataclass
@@ -114,10 +128,12 @@ class AssetGeometry:
     def hull_points(self) -> np.ndarray:
         """Vertices of the convex hull of all drawn parts, object frame (N, 3)."""
         if self._hull is None:
+            from scipy.spatial import ConvexHull, QhullError
+
             pts = np.concatenate([p.trimesh().vertices for p in self.parts if p.visual])
             try:
-                self._hull = np.asarray(trimesh.convex.convex_hull(pts).vertices)
-            except Exception as e:  # qhull fails only on degenerate input: keep all points then
+                self._hull = pts[np.sort(ConvexHull(pts).vertices)]
+            except QhullError as e:  # flat or degenerate geometry
                 raise ValueError(f"degenerate object geometry: {e}") from e
         return self._hull
 
