@@ -53,12 +53,12 @@ class GeometricDepth:
         p = prior.pitch if prior.pitch is not None else self.pitch
         return float(h), float(p)
 
-    def _size_depth(self, m: np.ndarray, typical: float | None, P: CameraPrior) -> float | None:
+    def _size_depth(self, ys: np.ndarray, xs: np.ndarray, shape: tuple[int, int], typical: float | None,
+                    P: CameraPrior) -> float | None:
         """Distance at which the mask's height matches the category's typical height (fronto-parallel)."""
         if not self.size_fallback or not typical:
             return None
-        ys, xs = np.nonzero(m)
-        H, W = m.shape
+        H, W = shape
         if ys.min() == 0 or xs.min() == 0 or ys.max() == H - 1 or xs.max() == W - 1:
             return None  # cut by the border: the visible height is not the object's height
         z = typical * P.fy / float(ys.max() - ys.min() + 1)
@@ -85,14 +85,14 @@ class GeometricDepth:
             vb = int(ys.max())
             low = ys >= vb - 2
             u = float(np.median(xs[low]))
-            info[oid] = (vb, u, m)
+            info[oid] = (vb, u, m, ys, xs)
         order = sorted(info, key=lambda i: (-info[i][0], i))  # lowest in the image first
         pending = list(order)
         progress = True
         while pending and progress:
             progress = False
             for oid in list(pending):
-                vb, u, m = info[oid]
+                vb, u, m, mys, mxs = info[oid]
                 v = vb + 0.5  # the lower edge of the mask's lowest pixel row
                 ray = np.array([(u - P.cx) / P.fx, (v - P.cy) / P.fy, 1.0])
                 probe_v, probe_u = min(vb + 2, H - 1), int(round(min(max(u, 0), W - 1)))
@@ -127,13 +127,12 @@ class GeometricDepth:
                 elif z > self.max_depth:
                     fail = {"reason": "too_far", "contact_depth": z}
                 typical = typical_height(prior.categories.get(oid, ""))
-                ys_ = np.nonzero(m)[0]
                 if fail is None and typical and self.max_size_ratio:
-                    implied = (ys_.max() - ys_.min() + 1) * z / P.fy
+                    implied = (mys.max() - mys.min() + 1) * z / P.fy
                     if implied > self.max_size_ratio * typical:
                         fail = {"reason": "size_prior_conflict", "contact_depth": z, "implied_height": round(float(implied), 3)}
                 if fail is not None:
-                    zs = self._size_depth(m, typical, P)
+                    zs = self._size_depth(mys, mxs, (H, W), typical, P)
                     if zs is None:
                         notes[oid] = {"contact": "none", "contact_px": [u, v], **fail}
                         continue
@@ -143,7 +142,7 @@ class GeometricDepth:
                 n = fwd  # fronto-parallel billboard: facing the camera's horizontal forward direction
                 off = float(n @ Pc)
                 planes[oid] = (n, off)
-                ys, xs = np.nonzero(m)
+                ys, xs = mys, mxs
                 rays = np.stack([(xs - P.cx) / P.fx, (ys - P.cy) / P.fy, np.ones(xs.size)], axis=1)
                 den = rays @ n
                 zz = np.where(den > EPS, off / np.maximum(den, EPS), 0.0)

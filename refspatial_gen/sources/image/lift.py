@@ -22,7 +22,7 @@ from refspatial_gen.core.geometry import Box3D, rot_z
 
 @dataclass(frozen=True)
 class LiftParams:
-    max_points: int = 2500
+    max_points: int = 1500
     min_points: int = 30
     min_valid_fraction: float = 0.3
     outlier_neighbours: int = 16
@@ -212,12 +212,17 @@ def lift_points(world: np.ndarray, pixel_scale: float, params: LiftParams) -> Li
         pc = pc.select_by_index(ind.tolist())
     if len(idx) < params.min_points:
         return "low_valid_depth"
-    eps = float(max(0.05, 8.0 * pixel_scale))  # loose: surfaces are already depth-continuous components
+    eps = float(max(0.03, 3.0 * pixel_scale))
     labels = np.asarray(pc.cluster_dbscan(eps=eps, min_points=params.dbscan_min_points, print_progress=False))
     if labels.size == 0 or labels.max() < 0:
         return "no_cluster"
     counts = np.bincount(labels[labels >= 0])
-    idx = idx[labels == int(np.argmax(counts))]
+    # the surface is already one depth-continuous component: DBSCAN only sheds floaters, so every
+    # cluster holding at least 3% of the points is kept (a surface seen at a grazing angle splits)
+    major = np.flatnonzero(counts >= max(params.dbscan_min_points, 0.03 * len(idx)))
+    if major.size == 0:
+        major = np.array([int(np.argmax(counts))])
+    idx = idx[np.isin(labels, major)]
     if len(idx) < params.min_points:
         return "no_cluster"
     box = fit_upright_box(world[idx])

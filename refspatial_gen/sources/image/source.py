@@ -65,7 +65,7 @@ CONFIG_FIELDS: dict[str, Field] = {
     "min_mask_fraction": Field(float, default=0.0005, min=0.0, max=1.0, doc="smallest mask as a fraction of the image"),
     "min_valid_depth_fraction": Field(float, default=0.3, min=0.0, max=1.0),
     "min_points": Field(int, default=30, min=3),
-    "max_points_per_object": Field(int, default=2500, min=50),
+    "max_points_per_object": Field(int, default=1500, min=50),
     "min_instance_spread": Field(float, default=0.1, min=0.0, doc="median nearest-neighbour centre distance (m)"),
     "max_instances_per_category": Field(int, default=12, min=1),
     "complete_categories": Field(bool, default=True, doc="drop a whole category when one instance is dropped"),
