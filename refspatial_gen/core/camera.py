@@ -68,16 +68,16 @@ class Camera:
         return self.project_cam(self.world_to_cam(points_world))
 
     def backproject(self, u: np.ndarray, v: np.ndarray, z: np.ndarray) -> np.ndarray:
-        """Pixels with metric depth -> camera-frame points (N,3)."""
+        """Pixels with metric depth -> camera-frame points (N,3). Pixel (u, v) spans [u, u+1): its centre is u + 0.5."""
         u, v, z = (np.asarray(a, float).ravel() for a in (u, v, z))
         return np.stack([(u - self.cx) * z / self.fx, (v - self.cy) * z / self.fy, z], axis=1)
 
     def depth_to_points(self, depth: np.ndarray, stride: int = 1) -> np.ndarray:
-        """Depth map (metres, 0 = unknown) -> world points of the valid pixels."""
+        """Depth map (metres, 0 = unknown) -> world points of the valid pixels (rays through pixel centres)."""
         vs, us = np.mgrid[0 : self.height : stride, 0 : self.width : stride]
         z = depth[::stride, ::stride]
         ok = z > 0
-        return self.cam_to_world(self.backproject(us[ok], vs[ok], z[ok]))
+        return self.cam_to_world(self.backproject(us[ok] + 0.5, vs[ok] + 0.5, z[ok]))
 
     def to_json(self) -> dict:
         return {

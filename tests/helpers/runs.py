@@ -12,14 +12,21 @@ scenes: {scenes}
 sources:
   - kind: toy
     config: {{min_objects: 4, max_objects: 7}}
+qa:
+  families:
+    locate: {{weight: 1.0, templates: [{templates}/locate.yaml]}}
+    choice: {{weight: 1.0, templates: [{templates}/choice.yaml]}}
+    quantitative: {{weight: 1.0, templates: [{templates}/quantitative.yaml]}}
+    identify: {{weight: 1.0, templates: [{templates}/identify.yaml]}}
 shards:
   samples_per_shard: {per_shard}
 """
+TEMPLATES = Path(__file__).resolve().parents[2] / "recipes" / "templates"
 
 
 def write_toy_recipe(folder: Path, scenes: int = 8, per_shard: int = 3) -> Path:
     p = folder / "toy.yaml"
-    p.write_text(TOY_RECIPE.format(scenes=scenes, per_shard=per_shard))
+    p.write_text(TOY_RECIPE.format(scenes=scenes, per_shard=per_shard, templates=TEMPLATES))
     return p
 
 
