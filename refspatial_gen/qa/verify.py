@@ -401,7 +401,7 @@ def _check_phrases(qa: QAPair, graph: SceneGraph, frame: Frame) -> list[str]:
                 if key in seen:
                     continue
                 seen.add(key)
-                ids = resolve_phrase(v["phrase"], frame)
+                ids = resolve_phrase(v["phrase"], graph)
                 if list(ids) != [int(v["object"])]:
                     out.append(f"phrase {v['phrase']!r} resolves to {list(ids)}, not to object {v['object']} "
                                "(not a unique reference)")

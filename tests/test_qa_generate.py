@@ -1,0 +1,226 @@
+"""generate_qa on real toy frames: formats, checks, balance, determinism, multi-view, visual choice."""
+
+from __future__ import annotations
+
+import json
+import re
+from collections import Counter
+
+import numpy as np
+import pytest
+
+from refspatial_gen.core.camera import Camera, look_at
+from refspatial_gen.core.mask import denormalise_point
+from refspatial_gen.core.serialize import dumps
+from refspatial_gen.graph import build_graph
+from refspatial_gen.graph.relations import SPEC_31
+from refspatial_gen.qa import generate_qa
+from refspatial_gen.qa.bench import default_config, qa_throughput
+from refspatial_gen.qa.executor import Context, Search, degenerate_steps
+from refspatial_gen.qa.generate import scene_index
+from refspatial_gen.qa.index import Reject
+from refspatial_gen.qa.templates import compile_templates
+from refspatial_gen.sources.toy import TABLE, toy_frame
+
+POINTS = re.compile(r"^\[\(\d\.\d{3}, \d\.\d{3}\)\]$")
+CHOICE = re.compile(r"^\([A-H]\)( .+)?$")
+TRACE = re.compile(r"^<think>(\[(Position|Orientation|Size)\] \[[^\]]+\]: \([-0-9., ]+\)\n?)+</think><answer>.+</answer>$")
+
+
+@pytest.fixture(scope="module")
+def cfg():
+    return default_config()
+
+
+@pytest.fixture(scope="module")
+def scenes():
+    out = []
+    for i in range(6):
+        f = toy_frame(np.random.default_rng(200 + i), 7, frame_id=f"toy:{i:06d}")
+        out.append((f, build_graph(f)))
+    return out
+
+
+@pytest.fixture(scope="module")
+def generated(scenes, cfg):
+    return [(f, g, generate_qa([f], [g], np.random.default_rng(i), cfg)) for i, (f, g) in enumerate(scenes)]
+
+
+def test_every_qa_pair_is_well_formed(generated):
+    fams = Counter()
+    for f, g, qas in generated:
+        assert 5 <= len(qas) <= 15
+        assert len({q.qa_id for q in qas}) == len(qas)
+        assert len({q.question for q in qas}) == len(qas)
+        for q in qas:
+            fams[q.family] += 1
+            assert 1 <= q.steps <= 5
+            assert q.frame_ids == [f.frame_id] and tuple(q.image_size) == (320, 240)
+            assert set(q.relations) <= set(SPEC_31) | {"next_to", "on"}
+            assert {"unique_references", "nondegenerate", "outside_margin", "balanced"} <= set(q.checks)
+            kind = q.answer_struct["kind"]
+            if kind in ("points", "region"):
+                assert POINTS.match(q.answer), q.answer
+                assert "[(x1, y1)" in q.question or "[(x, y)]" in q.question
+            elif kind == "choice":
+                assert CHOICE.match(q.answer), q.answer
+                assert "(A)" in q.question and "(B)" in q.question
+            else:
+                assert kind == "number" and re.search(r"(centimeters?|meters|degrees)$", q.answer)
+            if q.steps >= 2:
+                assert TRACE.match(q.trace), q.trace
+                assert q.trace.endswith(f"<answer>{q.answer}</answer>")
+            assert q.key_steps and all(k.type in ("Position", "Orientation", "Size") for k in q.key_steps)
+            assert q.program and q.program[-1]["out"] is not None
+            json.dumps(q.to_json())
+    assert set(fams) >= {"locate", "identify", "placement", "choice", "quantitative", "visual_choice"}
+
+
+def test_point_answers_lie_in_the_target_mask(generated):
+    n = 0
+    for f, g, qas in generated:
+        for q in qas:
+            if q.answer_struct["kind"] != "points":
+                continue
+            (x, y), = q.answer_struct["points"]
+            px, py = denormalise_point(x, y, 320, 240)
+            assert f.object(q.targets[0]).mask.decode()[py, px]
+            n += 1
+    assert n >= 10
+
+
+def test_same_seed_same_bytes(scenes, cfg):
+    f, g = scenes[0]
+    a = [q.to_json() for q in generate_qa([f], [g], np.random.default_rng(5), cfg)]
+    b = [q.to_json() for q in generate_qa([f], [g], np.random.default_rng(5), cfg)]
+    c = [q.to_json() for q in generate_qa([f], [g], np.random.default_rng(6), cfg)]
+    assert dumps(a) == dumps(b)
+    assert dumps(a) != dumps(c)
+
+
+def test_yes_no_and_letters_are_balanced(scenes, cfg):
+    yes = Counter()
+    letters = Counter()
+    for k in range(6):
+        for i, (f, g) in enumerate(scenes):
+            for q in generate_qa([f], [g], np.random.default_rng(100 * k + i), cfg):
+                s = q.answer_struct
+                if s["kind"] == "choice":
+                    letters[s["letter"] if len(s["options"]) == 2 else "multi"] += 1
+                    if sorted(s["options"]) == ["no", "yes"]:
+                        yes[s["answer"]] += 1
+    assert yes["yes"] + yes["no"] >= 20
+    assert 0.4 <= yes["yes"] / (yes["yes"] + yes["no"]) <= 0.6, yes
+    assert 0.35 <= letters["A"] / (letters["A"] + letters["B"]) <= 0.65, letters
+
+
+def _one_template(text: str):
+    import yaml
+
+    errors = []
+    ts = compile_templates(yaml.safe_load(text), "t.yaml", {}, errors)
+    assert not errors, errors
+    ts[0].family = "test"
+    return ts[0]
+
+
+def test_degenerate_step_is_detected(scenes):
+    """A relate step that does not narrow the described set makes the question degenerate."""
+    t = _one_template("""
+templates:
+  - name: t
+    slots: {cat: category, r1: {type: relation, choices: [left]}, a1: anchor, r2: {type: relation, choices: [right]}, a2: anchor}
+    program:
+      - {op: filter, category: cat}
+      - {op: relate, relation: r1, anchor: a1}
+      - {op: relate, relation: r2, anchor: a2}
+      - {op: locate}
+    text: ["the {cat} {r1} {a1} {r2} {a2}"]
+""")
+    f, g = scenes[0]
+    ctx = Context(scene_index(f, g), np.random.default_rng(0), prune=True)
+    idx = ctx.idx
+    # build an instance by hand: target x, a1 right of x, a2 left of x, with the second relate redundant
+    found = None
+    for cat in idx.categories:
+        for x in idx.by_category[cat]:
+            for a1 in idx.referable:
+                for a2 in idx.referable:
+                    if len({x, a1, a2}) < 3:
+                        continue
+                    try:
+                        s1 = idx.narrow("left", a1, idx.by_category[cat])
+                        s2 = idx.narrow("right", a2, s1)
+                    except Reject:
+                        continue
+                    if s1 == s2 == frozenset({x}):
+                        found = (cat, x, a1, a2, s1)
+    assert found, "no scene configuration with a redundant relation"
+    cat, x, a1, a2, s1 = found
+    env = {"cat": cat, "r1": "left", "a1": a1, "r2": "right", "a2": a2,
+           "step1": idx.by_category[cat], "step2": s1, "step3": s1, "step4": None}
+    from refspatial_gen.qa.executor import PointValue
+
+    env["step4"] = PointValue(idx.point(x), x)
+    assert 2 in degenerate_steps(t, env, ctx)
+    # and the search never yields such an instance
+    for inst in Search(t, ctx, 5000).instances():
+        assert not (inst["cat"] == cat and inst["a1"] == a1 and inst["a2"] == a2)
+
+
+def test_undecided_relation_is_never_asked(scenes):
+    """Planting an undecided fact: the binding that needs it is rejected with reason 'margin'."""
+    f, g = scenes[1]
+    idx = scene_index(f, g)
+    a, b = idx.referable[:2]
+    from refspatial_gen.qa.index import Fact
+
+    idx._fact_cache[("left", (a, b))] = Fact(None, 0.001)
+    with pytest.raises(Reject) as e:
+        idx.holds("left", (a, b))
+    assert e.value.reason == "margin"
+    idx._fact_cache.clear()
+    idx._rel_sets.clear()
+
+
+def test_multiview_camera_turn(cfg):
+    rng = np.random.default_rng(3)
+    f1 = toy_frame(rng, 5, frame_id="mv:0")
+    boxes = [(o.category, o.attributes["color"], o.box) for o in f1.objects]
+    w, h = 320, 240
+    fl = w / (2 * np.tan(np.deg2rad(30)))
+    top = TABLE.top_z
+    eye = np.array([0.0, -0.9, top + 0.7])
+    target_left = np.array([-0.25, 0.0, top])  # the second camera looks further left: it turned left
+    c2 = Camera(w, h, fl, fl, w / 2, h / 2, look_at(eye, target_left))
+    c1 = Camera(w, h, fl, fl, w / 2, h / 2, look_at(eye, np.array([0.15, 0.0, top])))
+    fa = toy_frame(rng, boxes=boxes, camera=c1, frame_id="mv:0")
+    fb = toy_frame(rng, boxes=boxes, camera=c2, frame_id="mv:1")
+    fa.scene_id = fb.scene_id = "mv"
+    ga, gb = build_graph(fa), build_graph(fb)
+    seen = []
+    for k in range(12):
+        for q in generate_qa([fa, fb], [ga, gb], np.random.default_rng(k), cfg):
+            if q.family == "multiview":
+                seen.append(q)
+                word = q.answer_struct["answer"]
+                if "left or right" in q.question:
+                    assert word == ("left" if q.frame_ids == ["mv:0", "mv:1"] else "right")
+                    assert q.relations == ["rotation_horizontal"]
+    assert seen and all(len(q.frame_ids) == 2 for q in seen)
+
+
+def test_visual_choice_marks_travel_in_answer_struct(generated):
+    vc = [q for _, _, qas in generated for q in qas if q.family == "visual_choice"]
+    assert vc
+    for q in vc:
+        marks = q.answer_struct["marks"]
+        assert [m["label"] for m in marks] == ["A", "B", "C"][:len(marks)]
+        assert all(m["style"] in ("box", "point") and m["view"] == 0 for m in marks)
+        k = "ABC".index(q.answer_struct["letter"])
+        assert q.targets == [marks[k]["object_id"]]
+
+
+def test_bench_reports_throughput(scenes, cfg):
+    r = qa_throughput(scenes[:3], seconds=0.5, config=cfg)
+    assert r["qa_pairs"] > 0 and r["qa_per_second_per_core"] > 0 and r["qa_per_sample"] >= 5
