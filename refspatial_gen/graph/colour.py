@@ -45,10 +45,11 @@ def colour_shares(hsv_pixels: np.ndarray) -> dict[str, float]:
     chrom = (s >= _SAT_MIN) & (v >= _VAL_MIN)
     bins = np.digitize(h, [b for b, _ in _HUE_BINS[:-1]], right=False)
     code[chrom] = _HUE_CODES[bins[chrom]]
-    # orange/yellow hues that are dark overall read as brown
+    # orange/yellow hues that are dark overall read as brown; so do dull, dark reds (wood, leather)
     warm = chrom & ((code == _IDX["orange"]) | (code == _IDX["yellow"]))
     if warm.any() and np.percentile(v[warm], 90) < 140:
         code[warm] = _IDX["brown"]
+    code[chrom & (code == _IDX["red"]) & (s < 150) & (v < 170)] = _IDX["brown"]
     ach = ~chrom
     if ach.any():
         v90 = np.percentile(v[ach], 90)
