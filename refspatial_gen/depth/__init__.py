@@ -116,6 +116,10 @@ def check_options(name: str, options: dict[str, Any]) -> str | None:
             return f"option {k!r} must be one of {', '.join(map(str, f.choices))}, got {v!r}"
         if f.min is not None and v < f.min:
             return f"option {k!r} must be >= {f.min}, got {v}"
+        if f.check is not None:
+            msg = f.check(v)
+            if msg:
+                return f"option {k!r}: {msg}"
     return None
 
 

@@ -59,6 +59,12 @@ def estimate_gravity(points_cam: np.ndarray, rng: np.random.Generator, prior_up:
     planes = horizontal_planes(P, rng, prior_up, thresh, need, max_planes=3, max_tilt=np.deg2rad(max_tilt_deg))
     if not planes:
         return None
+    # a second "plane" within 10 cm of a bigger one is the same surface's edge or bevel, not a new level
+    kept: list[Plane] = []
+    for pl in planes:
+        if all(abs(pl.d - k.d) >= 0.10 for k in kept):
+            kept.append(pl)
+    planes = kept
     up = planes[0].n / np.linalg.norm(planes[0].n)
     rest = np.ones(len(P), bool)
     for pl in planes:

@@ -291,6 +291,8 @@ def build_frame(coll: Collection, rec: ImageRecord, rng: np.random.Generator, cf
     T = world_from_cam(grav.up_cam, grav.camera_height)
     cam = Camera(W, H, intr.fx, intr.fy, intr.cx, intr.cy, T, gravity_known=grav.known)
     support_z = [float(cam.position[2] - pl.d) for pl in grav.planes]
+    if est_name == "geometric" and grav.known:
+        support_z = [0.0]  # the prior's ground plane: ground contacts snap their bottoms to it
     Tcw = cam.cam_from_world
     walls = [(Tcw[:3, :3].T @ w.n, float(w.n @ Tcw[:3, 3] + w.d)) for w in grav.walls]
 
