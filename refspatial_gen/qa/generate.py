@@ -114,7 +114,10 @@ def generate_qa(frames: list[Frame], graphs: list[SceneGraph], rng: np.random.Ge
             i = int(rng.integers(len(frames)))
             ctx = Context(idxs[i], rng)
             fids = [frames[i].frame_id]
-        qa = _instantiate(t, ctx, rng, config, bal, seen, fids, f"{frames[0].frame_id}:{len(out):02d}")
+        qid = f"{frames[0].frame_id}:{len(out):02d}"
+        qa = _instantiate(t, ctx, rng, config, bal, seen, fids, qid)
+        if qa is None and t.answer_type == ops.BOOL:  # the other answer may exist (the balancer catches up)
+            qa = _instantiate(t, ctx, rng, config, bal, seen, fids, qid, flip=True)
         if qa is None:
             exhausted.add(id(t))  # no binding passed in this sample: do not spend more attempts on it
             continue
@@ -142,8 +145,10 @@ def _is_multiview(t: Template) -> bool:
 
 
 def _instantiate(t: Template, ctx: Context, rng: np.random.Generator, config: QAConfig, bal: Balancer,
-                 seen: set, frame_ids: list[str], qa_id: str) -> QAPair | None:
+                 seen: set, frame_ids: list[str], qa_id: str, flip: bool = False) -> QAPair | None:
     want = bal.want_bool(rng) if t.answer_type == ops.BOOL else None
+    if flip and want is not None:
+        want = not want
     search = Search(t, ctx, config.budget)
     last = t.steps[-1].name
     for env in search.instances():
