@@ -224,3 +224,21 @@ def test_visual_choice_marks_travel_in_answer_struct(generated):
 def test_bench_reports_throughput(scenes, cfg):
     r = qa_throughput(scenes[:3], seconds=0.5, config=cfg)
     assert r["qa_pairs"] > 0 and r["qa_per_second_per_core"] > 0 and r["qa_per_sample"] >= 5
+
+
+def test_index_facts_equal_the_graph_query_index(scenes):
+    """The QA index answers exactly what graph.query.GraphIndex answers (bulk size comparisons included)."""
+    from itertools import permutations
+
+    from refspatial_gen.graph.query import GraphIndex
+    from refspatial_gen.qa.index import SceneIndex
+
+    for f, g in scenes[:3]:
+        idx, gi = SceneIndex(f, g), GraphIndex(g, f)
+        for rel in ("tall", "short", "big", "small", "wide", "thin", "left", "right", "front", "behind", "above_image",
+                    "below_image", "above_world", "below_world", "touching", "facing"):
+            for a, b in permutations(idx.ids, 2):
+                mine, ref = idx.fact(rel, (a, b)), gi.fact(rel, a, b)
+                assert (mine is None) == (ref is None)
+                if ref is not None:
+                    assert mine.holds == ref.holds and abs(mine.value - ref.value) < 1e-12, (rel, a, b)

@@ -15,6 +15,18 @@ import numpy as np
 from refspatial_gen.core.model import FreeSpaceRegion, Frame, SceneGraph
 
 
+# size relations the graph derives from node attributes: relation -> (base relation, arguments swapped)
+_DERIVED_OF = {"tall": ("tall", False), "short": ("tall", True), "big": ("big", False), "small": ("big", True),
+               "wide": ("wide", False), "thin": ("wide", True)}
+
+
+# antisymmetric relations stored once per pair: relation -> (stored base relation, arguments swapped)
+_PAIR_OF = {"left": ("left", False), "right": ("left", True), "front": ("front", False), "behind": ("front", True),
+            "above_image": ("above_image", False), "below_image": ("above_image", True),
+            "above_world": ("above_world", False), "below_world": ("above_world", True)}
+_PAIR_BASES = frozenset(v[0] for v in _PAIR_OF.values())
+
+
 class Reject(Exception):
     """An instantiation is unusable (empty set, undecided relation, missing fact...). `reason` is counted."""
 
@@ -61,6 +73,8 @@ class SceneIndex:
         self.gindex = GraphIndex(graph, frame)
         self._fact_cache: dict[tuple, Fact | None] = {}
         self._rel_sets: dict[tuple, tuple[frozenset, frozenset, frozenset]] = {}
+        self._derived: dict[str, dict | None] = {}
+        self._pairs: dict[tuple, Fact] | None = None
         self._runs: dict[int, np.ndarray] = {}
         self.by_category: dict[str, frozenset[int]] = {
             c: frozenset(i for i in self.ids if self.category[i] == c) for c in self.categories}
@@ -69,10 +83,55 @@ class SceneIndex:
         self.all = frozenset(self.ids)
 
     # ------------------------------------------------------------------ facts
+    def _derived_matrix(self, base: str) -> dict[tuple, Fact] | None:
+        """All pairs of a size comparison at once, with the graph's own decision function on the stored
+        node attributes (exactly what GraphIndex derives one pair at a time; a test pins the equality)."""
+        from refspatial_gen.graph.relations.common import holds_of
+        from refspatial_gen.graph.relations.sizes import DERIVED, compare
+
+        if base not in self._derived:
+            th, ids = self.gindex.th, self.ids
+            out = None
+            if th is not None and self.gindex.world and ids:
+                attr, abs_name, rel_name = DERIVED[base]
+                q = np.array([self.nodes[i].attributes[attr] for i in ids], float)
+                v, codes, m = compare(q, getattr(th, abs_name) if abs_name else 0.0, getattr(th, rel_name))
+                out = {(a, b): Fact(holds_of(int(codes[i, j])), float(v[i, j]))
+                       for i, a in enumerate(ids) for j, b in enumerate(ids) if i != j}
+            self._derived[base] = out
+        return self._derived[base]
+
+    def _load_pairs(self) -> None:
+        """Stored antisymmetric pair facts in both directions at once (R(b, a) = not R(a, b), value negated:
+        the storage rule of graph.query; a test pins the equality with GraphIndex)."""
+        out: dict[tuple, Fact] = {}
+        for f in self.graph.facts:
+            if f.relation in _PAIR_BASES and len(f.args) == 2:
+                a, b = int(f.args[0]), int(f.args[1])
+                if a in self.nodes and b in self.nodes and a != b:
+                    out[(f.relation, a, b)] = Fact(f.holds, float(f.value))
+                    out[(f.relation, b, a)] = Fact(None if f.holds is None else not f.holds, -float(f.value))
+        self._pairs = out
+
     def fact(self, relation: str, args: tuple) -> Fact | None:
         key = (relation, args)
         if key in self._fact_cache:
             return self._fact_cache[key]
+        pair = _PAIR_OF.get(relation)
+        if pair is not None and (pair[0] != "above_world" or self.gindex.world):
+            if self._pairs is None:
+                self._load_pairs()
+            a, b = args[::-1] if pair[1] else args
+            f = self._pairs.get((pair[0], a, b))
+            if f is not None:
+                self._fact_cache[key] = f
+                return f
+        base = _DERIVED_OF.get(relation)
+        if base is not None:
+            mat = self._derived_matrix(base[0])
+            out = None if mat is None else mat.get(args[::-1] if base[1] else args)
+            self._fact_cache[key] = out
+            return out
         f = self.gindex.fact(relation, *args)
         out = None if f is None else Fact(f.holds, float(f.value))
         self._fact_cache[key] = out
