@@ -75,3 +75,17 @@ def test_stacked_object_gets_an_on_phrase():
     # the stacked block is also within the support gap of the table top: "on the table" is ambiguous
     assert resolve_phrase("the block on the table", fr) == [1, 3]
     assert all("on the table" not in p for n in g.nodes for p in n.phrases)
+
+
+def test_hidden_object_gets_no_phrase_but_still_counts():
+    from refspatial_gen.core.mask import RLE
+
+    fr, _ = scene(("box", "red", box(-0.2, 0.0)), ("box", "blue", box(0.2, 0.0)), ("can", "green", box(0.0, 0.2, (0.06, 0.06, 0.12))))
+    fr.objects[1].mask = RLE.encode(np.zeros((fr.camera.height, fr.camera.width), bool))  # box 2 not visible
+    g = build_graph(fr, {"free_space": False})
+    assert g.node(2).point is None and g.node(2).phrases == []
+    assert "the box" not in g.node(1).phrases  # box 2 is still in the scene
+    assert all("blue" not in p for n in g.nodes for p in n.phrases)  # never used as an anchor either
+    for n in g.nodes:
+        for p in n.phrases:
+            assert resolve_phrase(p, fr) == [n.object_id]

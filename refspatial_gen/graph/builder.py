@@ -115,7 +115,9 @@ def graph_from_geometry(geom: SceneGeom, free_space: bool = True) -> SceneGraph:
         regions = free_regions(geom)
     from refspatial_gen.graph.relations.surface import surface_labels
 
-    surfaces = {sid: {"z": round(float(e["z"]), 4), "corners": sorted(e["corners"]), "edges": sorted(e["edges"])}
+    names = {s.id: (s.name or f"the {s.kind}") for s in geom.surfaces}
+    surfaces = {sid: {"z": round(float(e["z"]), 4), "name": names[sid], "corners": sorted(e["corners"]),
+                      "edges": sorted(e["edges"])}
                 for sid, e in surface_labels(geom).items()} if geom.world_ok else {}
     meta = {
         "scale": geom.cache["scale"], "thresholds": geom.th.to_json(), "gravity": geom.gravity.to_json(),

@@ -103,15 +103,17 @@ def make_phrases(geom: SceneGeom) -> list[list[str]]:
     by_cat: dict[str, list[int]] = {}
     for i in range(n):
         by_cat.setdefault(cats[i], []).append(i)
-    simple: dict[int, str] = {}  # anchor phrases: category or colour + category
+    simple: dict[int, str] = {}  # anchor phrases (visible objects only): category or colour + category
     for cat, members in sorted(by_cat.items()):
         if len(members) == 1:
             out[members[0]].append((0, f"the {cat}"))
-            simple[members[0]] = f"the {cat}"
+            if geom.points[members[0]] is not None:
+                simple[members[0]] = f"the {cat}"
         for i in members:
             if cols[i] is not None and sum(cols[j] == cols[i] for j in members) == 1:
                 out[i].append((0, f"the {cols[i]} {cat}"))
-                simple.setdefault(i, f"the {cols[i]} {cat}")
+                if geom.points[i] is not None:
+                    simple.setdefault(i, f"the {cols[i]} {cat}")
         _group_phrases(geom, members, cat, out)
         for col in sorted({c for c in (cols[i] for i in members) if c is not None}):
             sub = [i for i in members if cols[i] == col]
@@ -126,7 +128,8 @@ def make_phrases(geom: SceneGeom) -> list[list[str]]:
             if p not in seen:
                 seen.add(p)
                 items.append(p)
-        result.append(items[:MAX_PHRASES])
+        # an object the image does not show gets no phrase (it still counts as a distractor above)
+        result.append(items[:MAX_PHRASES] if geom.points[i] is not None else [])
     return result
 
 

@@ -115,19 +115,18 @@ def _from_graph(graph: SceneGraph) -> _Scene:
     for f in graph.facts:
         if f.relation == "distance":
             d[(pos[f.args[0]], pos[f.args[1]])] = d[(pos[f.args[1]], pos[f.args[0]])] = f.value
-    names = {}
-    for sid, s in graph.meta.get("surfaces", {}).items():
-        names[sid] = sid
+    by_name = {str(e.get("name") or f"the {sid}").lower(): sid for sid, e in graph.meta.get("surfaces", {}).items()}
     sup = {pos[n.object_id]: n.support for n in nodes}
 
     def on(i: int, anchor) -> bool:
+        """Direct support as stored in the graph (the builder's support test)."""
         s = sup[i]
         if anchor[0] == "obj":
             return s == f"obj:{ids[anchor[1]]}"
-        return s is not None and (s == anchor[1] or f"the {s}" == anchor[1])
+        return s is not None and s == by_name.get(anchor[1])
 
     return _Scene(ids, [_norm(n.category) for n in nodes], [x.get("color") for x in a], feats, _tolerances(th),
-                  {f"the {k}": (0.0, None) for k in names}, lambda i, j: d.get((i, j), np.inf), on)
+                  {name: (0.0, None) for name in by_name}, lambda i, j: d.get((i, j), np.inf), on)
 
 
 def _base(sc: _Scene, text: str) -> list[int] | None:
