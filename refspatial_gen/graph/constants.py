@@ -73,7 +73,7 @@ TABLETOP = Thresholds(
     inside_fraction=0.30, inside_band=0.10, between_t_margin=0.10, between_corridor=0.35,
     rotation_margin=0.035, facing_cone=0.5236, facing_margin=0.0873, angle_margin=0.0873, sector_margin=0.1745,
     support_gap=0.05, support_overlap=0.70, corner_reach=0.15, edge_band=0.08, surface_band_margin=0.03,
-    free_radius_min=0.20, free_min_area=0.03, free_clearance=0.01, free_grid=0.01, visibility_tolerance=0.025,
+    free_radius_min=0.20, free_min_area=0.03, free_clearance=0.01, free_grid=0.015, visibility_tolerance=0.025,
     corner_size=0.20, edge_width=0.10,
     anchor_distance_margin=0.03,
 )

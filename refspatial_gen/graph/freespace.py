@@ -19,7 +19,7 @@ from shapely.ops import unary_union
 
 from refspatial_gen.core.mask import denormalise_point, normalise_point
 from refspatial_gen.core.model import Frame, FreeSpaceRegion, SceneGraph
-from refspatial_gen.graph.scene import SceneGeom, box_footprint
+from refspatial_gen.graph.scene import SceneGeom, box_footprint, points_in_polygons
 from refspatial_gen.graph.support import get_supports, surface_polygon
 
 MAX_SAMPLES = 3000  # grid points per region (the grid coarsens for large regions)
@@ -96,14 +96,13 @@ def check_free_point(frame: Frame, graph: SceneGraph, region: FreeSpaceRegion,
         from refspatial_gen.core.geometry import Box3D
 
         sb = Box3D(G @ surf.box.center, surf.box.size, G @ surf.box.rotation)
-        if not shapely.contains_xy(Polygon(surface_polygon(sb)), hit[0], hit[1]):
+        if not points_in_polygons(hit[None, :2], surface_polygon(sb)[None])[0, 0]:
             problems.append(f"point ({hit[0]:.3f}, {hit[1]:.3f}) is off surface {region.surface_id}")
     if not shapely.contains_xy(Polygon(region.polygon_xy), hit[0], hit[1]):
         problems.append("point is outside the region polygon")
-    for fp in (obstacle_footprints(frame, G, region.z, gap) if obstacles is None else obstacles):
-        if shapely.contains_xy(Polygon(fp), hit[0], hit[1]):
-            problems.append(f"point ({hit[0]:.3f}, {hit[1]:.3f}) lies on an obstacle's footprint")
-            break
+    fps = obstacle_footprints(frame, G, region.z, gap) if obstacles is None else obstacles
+    if len(fps) and points_in_polygons(hit[None, :2], np.asarray(fps, float)).any():
+        problems.append(f"point ({hit[0]:.3f}, {hit[1]:.3f}) lies on an obstacle's footprint")
     pw = G.T @ hit
     z_cam = float(cam.world_to_cam(pw[None])[0, 2])
     d = float(frame.depth[py, px])
