@@ -9,7 +9,7 @@ from refspatial_gen.depth.scale import recover_metric
 
 
 def _prior(**kw) -> CameraPrior:
-    base = dict(width=160, height=120, fx=100.0, fy=100.0, cx=79.5, cy=59.5)
+    base = dict(width=160, height=120, fx=100.0, fy=100.0, cx=80.0, cy=60.0)
     base.update(kw)
     return CameraPrior(**base)
 
@@ -67,8 +67,8 @@ def _rect(y0, y1, x0, x1, shape=(120, 160)):
 
 
 def test_geometric_ground_contact_distance():
-    """Camera 1.5 m high, level: the mask's lowest row is 89, its lower edge 89.5, 30 px under the
-    principal point (59.5): it stands at z = h * f / 30 = 5 m, and all its pixels share that depth."""
+    """Camera 1.5 m high, level: the mask's lowest row is 89, its lower edge 90, 30 px under the
+    principal point (60): it stands at z = h * f / 30 = 5 m, and all its pixels share that depth."""
     m = _rect(40, 90, 60, 80)
     res = get_estimator("geometric", {"camera_height": 1.5}).estimate(None, _prior(masks=[(1, m)]))
     z = 1.5 * 100.0 / 30.0
@@ -90,7 +90,7 @@ def test_geometric_pitch_support_and_failures():
     assert abs(res.depth_m[60, 75] - res.depth_m[100, 75]) < 1e-4  # cup at the table's billboard depth
     # pitched down 10 degrees: the horizon moves up by f * tan(10deg), the same contact row is nearer
     pitched = get_estimator("geometric", {"camera_height": 1.5, "pitch_deg": 10.0}).estimate(None, _prior(masks=[(1, table)]))
-    assert abs(pitched.meta["horizon_row"] - (59.5 - 100 * np.tan(np.deg2rad(10)))) < 1e-9
+    assert abs(pitched.meta["horizon_row"] - (60.0 - 100 * np.tan(np.deg2rad(10)))) < 1e-9
     assert pitched.meta["objects"]["1"]["contact_depth"] < res.meta["objects"]["1"]["contact_depth"]
 
 
@@ -127,7 +127,7 @@ def test_scale_recovery_from_camera_height():
     p = _prior()
     vs, us = np.mgrid[0:120, 0:160].astype(float)
     below = vs > 62
-    z = np.where(below, 1.2 * 100.0 / np.maximum(vs - 59.5, 1e-6), 0.0)
+    z = np.where(below, 1.2 * 100.0 / np.maximum(vs + 0.5 - 60.0, 1e-6), 0.0)
     rel = z * 0.37
     depth, origin, meta = recover_metric(rel, "depth", p, "camera_height", 1.2, 0.0, None, np.random.default_rng(0))
     assert origin == "scale:camera_height"

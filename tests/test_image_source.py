@@ -38,9 +38,7 @@ def write_toy_collection(root: Path, n: int = 2, depth: bool = True, seed: int =
         cv2.imwrite(str(root / "images" / name), f.rgb[..., ::-1])
         if depth:
             cv2.imwrite(str(root / "images" / f"{i:06d}_depth.png"), np.round(f.depth * 1000).astype(np.uint16))
-        K = f.camera.K.copy()
-        K[0, 2] -= 0.5  # the toy casts rays through pixel centres at u + 0.5: 0-based centres shift by 0.5
-        K[1, 2] -= 0.5
+        K = f.camera.K  # the toy and the image source share Camera's convention (pixel u spans [u, u+1))
         (root / "images" / f"{i:06d}.intrinsics.json").write_text(json.dumps({"K": K.tolist()}))
         images.append({"id": i + 1, "file_name": name, "width": 320, "height": 240})
         for o in f.objects:

@@ -21,7 +21,8 @@ import numpy as np
 
 @dataclass
 class CameraPrior:
-    """What is known about the picture before depth: intrinsics (0-based pixel centres), the camera
+    """What is known about the picture before depth: intrinsics (Camera's convention: pixel u spans
+    [u, u+1), its centre is u + 0.5), the camera
     height/pitch/roll prior (metres, radians; pitch > 0 looks down), and per-image side information some
     estimators need: the provided depth file, object masks with ids (geometric placement, scale
     recovery) and a mask of pixels known to be ground (panoptic floor/road stuff)."""
@@ -43,7 +44,7 @@ class CameraPrior:
 
     def rays(self) -> np.ndarray:
         """(H, W, 3) camera-frame rays with z = 1 through every pixel centre."""
-        vs, us = np.mgrid[0 : self.height, 0 : self.width].astype(np.float64)
+        vs, us = np.mgrid[0 : self.height, 0 : self.width].astype(np.float64) + 0.5
         return np.stack([(us - self.cx) / self.fx, (vs - self.cy) / self.fy, np.ones_like(us)], axis=-1)
 
     def up_cam(self) -> np.ndarray:

@@ -84,7 +84,7 @@ class GeometricDepth:
                 continue
             vb = int(ys.max())
             low = ys >= vb - 2
-            u = float(np.median(xs[low]))
+            u = float(np.median(xs[low])) + 0.5  # continuous coordinate of the contact column's centre
             info[oid] = (vb, u, m, ys, xs)
         order = sorted(info, key=lambda i: (-info[i][0], i))  # lowest in the image first
         pending = list(order)
@@ -93,9 +93,9 @@ class GeometricDepth:
             progress = False
             for oid in list(pending):
                 vb, u, m, mys, mxs = info[oid]
-                v = vb + 0.5  # the lower edge of the mask's lowest pixel row
+                v = vb + 1.0  # the lower edge of the mask's lowest pixel row
                 ray = np.array([(u - P.cx) / P.fx, (v - P.cy) / P.fy, 1.0])
-                probe_v, probe_u = min(vb + 2, H - 1), int(round(min(max(u, 0), W - 1)))
+                probe_v, probe_u = min(vb + 2, H - 1), int(min(max(np.floor(u), 0), W - 1))
                 below = 0
                 if self.support and vb + 2 <= H - 1:
                     for other in order:
@@ -143,7 +143,7 @@ class GeometricDepth:
                 off = float(n @ Pc)
                 planes[oid] = (n, off)
                 ys, xs = mys, mxs
-                rays = np.stack([(xs - P.cx) / P.fx, (ys - P.cy) / P.fy, np.ones(xs.size)], axis=1)
+                rays = np.stack([(xs + 0.5 - P.cx) / P.fx, (ys + 0.5 - P.cy) / P.fy, np.ones(xs.size)], axis=1)
                 den = rays @ n
                 zz = np.where(den > EPS, off / np.maximum(den, EPS), 0.0)
                 zz = np.where(zz <= self.max_depth, zz, 0.0).astype(np.float32)

@@ -44,7 +44,9 @@ def contact_anchors(prior: CameraPrior, camera_height: float, pitch: float) -> l
     for k, note in sorted(res.meta["objects"].items(), key=lambda kv: int(kv[0])):
         if note.get("contact") == "ground" and not note.get("truncated"):
             u, v = note["contact_px"]
-            out.append((int(round(u)), int(min(prior.height - 1, np.floor(v))), float(note["contact_depth"])))
+            # continuous contact (lower edge of the lowest row) -> that row's pixel index
+            out.append((int(min(prior.width - 1, np.floor(u))), int(min(prior.height - 1, np.ceil(v) - 1)),
+                        float(note["contact_depth"])))
     return out
 
 
@@ -96,7 +98,7 @@ def recover_metric(pred: np.ndarray, kind: str, prior: CameraPrior, method: str,
     if method == "camera_height":
         st = 4
         z = rel[::st, ::st]
-        vs, us = np.mgrid[0 : prior.height : st, 0 : prior.width : st]
+        vs, us = np.mgrid[0 : prior.height : st, 0 : prior.width : st] + 0.5
         ok = z > 0
         pts = np.stack([(us[ok] - prior.cx) * z[ok] / prior.fx, (vs[ok] - prior.cy) * z[ok] / prior.fy, z[ok]], 1)
         if len(pts) < 50:

@@ -53,7 +53,7 @@ class ImageRecord:
     height: int | None
     annotations: list[Annotation]
     depth_file: Path | None = None
-    intrinsics: tuple[float, float, float, float] | None = None  # fx, fy, cx, cy (0-based pixel centres)
+    intrinsics: tuple[float, float, float, float] | None = None  # fx, fy, cx, cy (pixel u spans [u, u+1))
     panoptic_png: Path | None = None
     meta: dict[str, Any] = field(default_factory=dict)
 
@@ -271,7 +271,8 @@ def read_sunrgbd(root: Path, annotations: str | None = None, images_dir: str | N
         K = np.asarray(a["K"], float)
         rec = ImageRecord(d.name, d / a.get("image", "image.jpg"), int(a["width"]), int(a["height"]), [],
                           depth_file=d / a.get("depth", "depth.png"),
-                          intrinsics=(float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2])),
+                          # the annotation's K is in 0-based pixel centres: +0.5 to the pixel-edge convention
+                          intrinsics=(float(K[0, 0]), float(K[1, 1]), float(K[0, 2]) + 0.5, float(K[1, 2]) + 0.5),
                           meta={"depth_scale": float(a.get("depth_scale", 1000.0))})
         for k, o in enumerate(a["objects"]):
             x0, y0, x1, y1 = (float(v) for v in o["bbox2d_xyxy"])

@@ -1,7 +1,7 @@
 """Intrinsics for photos: provided by the dataset, from EXIF focal length, or a field-of-view prior.
 
-Principal point convention: 0-based pixel centres (pixel (0, 0) is centred at (0, 0)), so an image
-centre is ((W - 1) / 2, (H - 1) / 2). Every result says where it came from (`origin`), and the image
+Pixel convention (the same as core.camera.Camera): pixel (u, v) spans [u, u+1) x [v, v+1), its centre
+is (u + 0.5, v + 0.5), so an image centre is (W / 2, H / 2). Every result says where it came from (`origin`), and the image
 source records it in `Frame.meta["intrinsics"]`.
 """
 
@@ -41,7 +41,7 @@ class Intrinsics:
 
 def from_fov(width: int, height: int, hfov_deg: float) -> Intrinsics:
     f = (width / 2.0) / np.tan(np.deg2rad(hfov_deg) / 2.0)
-    return Intrinsics(float(f), float(f), (width - 1) / 2.0, (height - 1) / 2.0, "fov_prior", f"hfov={hfov_deg:g}deg")
+    return Intrinsics(float(f), float(f), width / 2.0, height / 2.0, "fov_prior", f"hfov={hfov_deg:g}deg")
 
 
 def from_exif(path: Path, width: int, height: int) -> Intrinsics | None:
@@ -54,7 +54,7 @@ def from_exif(path: Path, width: int, height: int) -> Intrinsics | None:
             ifd = exif.get_ifd(EXIF_IFD) if exif else {}
     except OSError:
         return None
-    cx, cy = (width - 1) / 2.0, (height - 1) / 2.0
+    cx, cy = width / 2.0, height / 2.0
     f35 = ifd.get(TAG_FOCAL_35MM)
     if f35:
         f = float(f35) * float(np.hypot(width, height)) / DIAG_35MM
@@ -68,7 +68,8 @@ def from_exif(path: Path, width: int, height: int) -> Intrinsics | None:
 
 
 def from_sidecar(path: Path) -> Intrinsics | None:
-    """`<stem>.intrinsics.json` next to the image: {"fx", "fy", "cx", "cy"} or {"K": 3x3}."""
+    """`<stem>.intrinsics.json` next to the image: {"fx", "fy", "cx", "cy"} or {"K": 3x3}, in the
+    pixel-edge convention above (cx = W / 2 for a centred principal point)."""
     side = path.with_name(path.stem + ".intrinsics.json")
     if not side.is_file():
         return None

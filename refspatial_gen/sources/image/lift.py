@@ -116,7 +116,7 @@ def lift_object(xs: np.ndarray, ys: np.ndarray, zz: np.ndarray, cam, params: Lif
     """All valid-depth pixels of one object (x, y, z-depth) -> Lifted, or a drop reason string.
 
     `keep_pixels` of the result indexes these pixels (the ones on the kept surface)."""
-    world = cam.cam_to_world(cam.backproject(xs, ys, zz))
+    world = cam.cam_to_world(cam.backproject(xs + 0.5, ys + 0.5, zz))  # pixel centres
     n_in = len(zz)
     keep = np.ones(n_in, bool)
     notes: dict = {}

@@ -274,9 +274,10 @@ def build_frame(coll: Collection, rec: ImageRecord, rng: np.random.Generator, cf
     if mode == "plane":
         st = max(1, int(round(np.sqrt(H * W / 20000.0))))
         vs, us = np.mgrid[0:H:st, 0:W:st]
-        z = depth[::st, ::st]
+        z = depth[::st, ::st]  # (us + 0.5, vs + 0.5): pixel centres in Camera's convention
         ok = z > 0  # object tops (tables, beds) are as good a gravity cue as the floor
-        pts = np.stack([(us[ok] - intr.cx) * z[ok] / intr.fx, (vs[ok] - intr.cy) * z[ok] / intr.fy, z[ok]], axis=1)
+        pts = np.stack([(us[ok] + 0.5 - intr.cx) * z[ok] / intr.fx, (vs[ok] + 0.5 - intr.cy) * z[ok] / intr.fy,
+                        z[ok]], axis=1)
         g = estimate_gravity(pts, rng, prior_up, cfg["max_tilt_deg"])
         if g is None:
             grav = GravityEstimate(prior_up, False, "unknown", None, detail={"why": "no horizontal plane found"})
@@ -325,7 +326,7 @@ def build_frame(coll: Collection, rec: ImageRecord, rng: np.random.Generator, cf
         c.provenance["points"] = out.points_used
         if not c.segmentation and est_name != "geometric":
             # a box annotation: the visible mask is the box pixels whose 3D point lies on the object
-            allw = cam.cam_to_world(cam.backproject(xs, ys, zz))
+            allw = cam.cam_to_world(cam.backproject(xs + 0.5, ys + 0.5, zz))
             vis = out.keep_pixels & out.visible_box.contains(allw, pad=0.03)
             m = np.zeros((H, W), bool)
             m[ys[vis], xs[vis]] = True
@@ -387,7 +388,7 @@ def _surfaces(grav, cam: Camera, depth: np.ndarray, ground: np.ndarray, support_
             ys, xs = np.nonzero(ground & (depth > 0))
             if len(ys) > 50:
                 step = max(1, len(ys) // 4000)
-                pts = cam.cam_to_world(cam.backproject(xs[::step], ys[::step], depth[ys[::step], xs[::step]]))
+                pts = cam.cam_to_world(cam.backproject(xs[::step] + 0.5, ys[::step] + 0.5, depth[ys[::step], xs[::step]]))
                 b = _surface_box(pts, 0.0)
                 if b is not None:
                     out.append(SupportSurface("ground", "floor", b, None, "the ground"))
@@ -417,7 +418,7 @@ def _surfaces(grav, cam: Camera, depth: np.ndarray, ground: np.ndarray, support_
         if name is None:
             continue
         zz = depth[pv, pu]
-        pts = cam.cam_to_world(cam.backproject(pu, pv, zz))
+        pts = cam.cam_to_world(cam.backproject(pu + 0.5, pv + 0.5, zz))
         b = _surface_box(pts, top)
         if b is not None:
             out.append(SupportSurface(f"plane{i}", kind, b, oid, name))
