@@ -185,3 +185,23 @@ def test_fuzzed_mutations_of_a_good_template(case, seed):
     errors: list[RecipeError] = []
     compile_templates(doc, "m.yaml", {}, errors)
     assert errors  # every mutation above breaks the template, and is reported, not raised
+
+
+_recipe_words = st.sampled_from(["name", "seed", "scenes", "sources", "kind", "toy", "weight", "qa", "families",
+                                 "templates", "max_per_sample", "budget", "steps", "locate", "templates/locate.yaml",
+                                 "shards", "samples_per_shard", "config", "point_slack"])
+_recipe_values = st.recursive(st.one_of(_recipe_words, st.integers(-5, 40), st.none(), st.booleans()),
+                              lambda c: st.one_of(st.lists(c, max_size=3), st.dictionaries(_recipe_words, c, max_size=4)),
+                              max_leaves=20)
+
+
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.dictionaries(_recipe_words, _recipe_values, max_size=6))
+def test_fuzzed_recipes_lint_without_traceback(tmp_path_factory, doc):
+    d = tmp_path_factory.mktemp("rc")
+    (d / "templates").mkdir()
+    (d / "templates" / "locate.yaml").write_text((REPO / "recipes" / "templates" / "locate.yaml").read_text())
+    p = d / "r.yaml"
+    p.write_text(yaml.safe_dump(doc))
+    for e in lint_file(p):
+        assert isinstance(e, RecipeError) and str(e).startswith(str(p) + ":") or str(e).startswith(str(d))
