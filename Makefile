@@ -2,7 +2,9 @@
 PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
-STAMP := $(VENV)/.installed-$(shell cat pyproject.toml | sha1sum | cut -c1-12)
+HASH := $(shell cat pyproject.toml | sha1sum | cut -c1-12)
+STAMP := $(VENV)/.installed-$(HASH)
+TEST_STAMP := $(VENV)/.installed-test-$(HASH)
 RECIPE ?= recipes/default.yaml
 OUT ?= out/shards/default
 SCENES ?=
@@ -11,32 +13,40 @@ PYTEST_ARGS ?=
 export MUJOCO_GL ?= egl
 export PYOPENGL_PLATFORM ?= egl
 
-.PHONY: setup shards test test-slow test-all bench preview lint clean
+.PHONY: setup setup-test shards test test-slow test-all bench preview lint clean
 
 $(STAMP): pyproject.toml
 	@bash scripts/ensure-system-libs.sh
 	@test -x $(BIN)/python || $(PY) -m venv $(VENV)
 	@echo "installing refspatial-gen and its pinned dependencies into $(VENV) (first use only)"
 	@$(BIN)/python -m pip install -q --upgrade pip
-	@$(BIN)/python -m pip install -q -e '.[test]'
-	@rm -f $(VENV)/.installed-*
+	@$(BIN)/python -m pip install -q -e .
+	@rm -f $(VENV)/.installed-[0-9a-f]*
+	@touch $@
+
+# the tests also need the optional extras: Ray (scale-out), torch + transformers + onnxruntime (depth models)
+$(TEST_STAMP): $(STAMP)
+	@echo "installing test extras (pytest, hypothesis, ray, torch CPU, transformers, onnxruntime)"
+	@$(BIN)/python -m pip install -q -e '.[test,ray,depth,dev]'
+	@rm -f $(VENV)/.installed-test-*
 	@touch $@
 
 setup: $(STAMP)
+setup-test: $(TEST_STAMP)
 
 shards: setup
 	$(BIN)/refspatial-gen shards --recipe $(RECIPE) --out $(OUT) $(if $(SCENES),--scenes $(SCENES)) --workers $(WORKERS)
 
-test: setup
+test: setup-test
 	$(BIN)/python -m pytest -q -m "not slow" $(PYTEST_ARGS)
 
-test-slow: setup
+test-slow: setup-test
 	$(BIN)/python -m pytest -q -m slow $(PYTEST_ARGS); rc=$$?; [ $$rc -eq 5 ] && rc=0; exit $$rc
 
-test-all: setup
+test-all: setup-test
 	$(BIN)/python -m pytest -q $(PYTEST_ARGS)
 
-bench: setup
+bench: setup-test
 	$(BIN)/python -m refspatial_gen.bench
 
 preview: setup
