@@ -102,6 +102,8 @@ def load_recipe(path: str | Path, *, seed: int | None = None, scenes: int | None
         inp = input_path if input_path is not None else sp["input"]
         if inp is not None and input_path is None:
             inp = str((Path(file).parent / inp).resolve())
+        if inp is not None:
+            cfg["_input"] = inp  # sources resolve their (relative) unit keys against it in load()
         specs.append(SourceSpec(i, kind, sp["weight"], sp["scenes"], inp, cfg))
     if top["sources"] is not None and not top["sources"]:
         errors.append(RecipeError(file, line_of(lines, ("sources",)), "sources must list at least one source"))
