@@ -24,10 +24,22 @@ from refspatial_gen.graph.gravity import Gravity
 UPRIGHT_COS = np.cos(np.deg2rad(2.0))  # a box axis this close to vertical makes the box a vertical prism
 
 
+_NEXT: dict[int, np.ndarray] = {}
+
+
+def roll_next(a: np.ndarray, axis: int = 0) -> np.ndarray:
+    """`np.roll(a, -1, axis)` (each vertex's successor), without np.roll's overhead on tiny arrays."""
+    k = a.shape[axis]
+    idx = _NEXT.get(k)
+    if idx is None:
+        idx = _NEXT[k] = (np.arange(k) + 1) % max(k, 1)
+    return np.take(a, idx, axis=axis)
+
+
 def ccw(poly: np.ndarray) -> np.ndarray:
     """The polygon's vertices in counter-clockwise order."""
     x, y = poly[:, 0], poly[:, 1]
-    area2 = float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+    area2 = float(np.sum(x * roll_next(y) - roll_next(x) * y))
     return poly if area2 >= 0 else poly[::-1].copy()
 
 
@@ -52,7 +64,7 @@ def box_footprint(box: Box3D) -> tuple[np.ndarray, bool]:
 def points_in_polygons(points: np.ndarray, polys: np.ndarray, pad: float = 0.0) -> np.ndarray:
     """(P, 2) points in each of (M, K, 2) convex CCW polygons -> bool (M, P). `pad` grows the polygons."""
     a = polys
-    b = np.roll(polys, -1, axis=1)
+    b = roll_next(polys, axis=1)
     e = b - a  # (M,K,2)
     ln = np.linalg.norm(e, axis=2) + 1e-12
     rel = points[None, None, :, :] - a[:, :, None, :]  # (M,K,P,2)
@@ -63,14 +75,14 @@ def points_in_polygons(points: np.ndarray, polys: np.ndarray, pad: float = 0.0) 
 def polygon_distances(polys: np.ndarray) -> np.ndarray:
     """Pairwise minimum distances between convex CCW polygons (M, K, 2); 0 where they overlap."""
     a = polys[None, :, None, :, :]
-    e = (np.roll(polys, -1, axis=1) - polys)[None, :, None, :, :]
+    e = (roll_next(polys, axis=1) - polys)[None, :, None, :, :]
     p = polys[:, None, :, None, :]
     ee = np.sum(e * e, axis=-1)
     t = np.clip(np.sum((p - a) * e, axis=-1) / np.maximum(ee, 1e-18), 0.0, 1.0)
     d = np.linalg.norm(p - (a + t[..., None] * e), axis=-1).min(axis=(2, 3))  # vertices of i to edges of j
     d = np.minimum(d, d.T)
     # separating-axis test: overlap when no edge normal of either polygon separates them
-    edges = np.roll(polys, -1, axis=1) - polys
+    edges = roll_next(polys, axis=1) - polys
     normals = np.stack([-edges[..., 1], edges[..., 0]], axis=-1)  # (M,K,2)
     proj = np.einsum("mkd,npd->mnkp", normals, polys)  # normals of m, vertices of n
     mn, mx = proj.min(axis=3), proj.max(axis=3)  # (M,N,K)
@@ -109,7 +121,7 @@ class SceneGeom:
         fps = [box_footprint(b) for b in self.boxes]
         self.footprints = np.array([f for f, _ in fps]).reshape(n, 4, 2)
         self.upright = np.array([u for _, u in fps], dtype=bool)
-        sides = np.linalg.norm(np.roll(self.footprints, -1, axis=1) - self.footprints, axis=2)  # (n,4)
+        sides = np.linalg.norm(roll_next(self.footprints, axis=1) - self.footprints, axis=2)  # (n,4)
         self.width = sides.max(axis=1) if n else np.zeros(0)  # larger horizontal extent
         self.footprint_area = sides[:, 0] * sides[:, 1] if n else np.zeros(0)
         # camera frame (the frame's own camera and world)

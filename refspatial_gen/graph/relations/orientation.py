@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from refspatial_gen.core.model import RelationFact
+from refspatial_gen.graph.scene import roll_next
 from refspatial_gen.graph.relations.base import FRONT_SOURCES, Relation, register
 from refspatial_gen.graph.relations.common import FALSE, TRUE, UNDECIDED, cached, fact, pos
 
@@ -73,7 +74,7 @@ def _angle(geom, i: int, j: int) -> RelationFact:
 def rays_hit_polygons(origins: np.ndarray, dirs: np.ndarray, polys: np.ndarray, pad: float) -> np.ndarray:
     """(n, m): does the 2D ray origins[i] + t dirs[i] (t > 0) meet convex CCW polygon j grown by `pad`?"""
     a = polys
-    e = np.roll(polys, -1, axis=1) - polys
+    e = roll_next(polys, axis=1) - polys
     nrm = np.stack([e[..., 1], -e[..., 0]], axis=-1) / (np.linalg.norm(e, axis=-1, keepdims=True) + 1e-12)  # outward
     num = np.einsum("mkd,mkd->mk", a, nrm)[None, :, :] - np.einsum("id,mkd->imk", origins, nrm) + pad  # (n,m,k)
     den = np.einsum("id,mkd->imk", dirs, nrm)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from refspatial_gen.core.model import RelationFact
+from refspatial_gen.graph.scene import roll_next
 from refspatial_gen.graph.relations.base import SURFACE_SOURCES, Relation, register
 from refspatial_gen.graph.relations.common import TRUE, UNDECIDED, band_matrix, cached, pos
 from refspatial_gen.graph.support import get_supports, surface_polygon
@@ -51,7 +52,7 @@ def surface_labels(geom) -> dict[str, dict]:
 
 def _footprint_to_point(fp: np.ndarray, p: np.ndarray) -> float:
     """Distance from a point to a convex footprint (0 inside)."""
-    a, b = fp, np.roll(fp, -1, axis=0)
+    a, b = fp, roll_next(fp, axis=0)
     e = b - a
     t = np.clip(np.sum((p - a) * e, axis=1) / np.maximum(np.sum(e * e, axis=1), 1e-18), 0, 1)
     d = np.linalg.norm(p - (a + t[:, None] * e), axis=1).min()
