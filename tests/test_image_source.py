@@ -60,10 +60,10 @@ def test_synthetic_rgbd_lifting_matches_ground_truth(tmp_path):
     truth = write_toy_collection(tmp_path, n=2)
     src = ImageSource()
     keys = src.unit_keys(TOY_CFG, None, str(tmp_path))
-    assert [parse_key(k)[1] for k in keys] == ["1", "2"]
+    assert keys == ["image:1", "image:2"] and [parse_key(k) for k in keys] == ["1", "2"]
     errs, height_errs = [], []
     for k, gt in zip(keys, truth):
-        f = src.load(k, np.random.default_rng(0), TOY_CFG)[0]
+        f = src.load(k, np.random.default_rng(0), TOY_CFG | {"_input": str(tmp_path)})[0]
         f.validate()
         assert f.camera.gravity_known and f.meta["gravity"]["origin"] == "plane_ransac"
         up_gt = gt.camera.cam_from_world[:3, :3] @ np.array([0, 0, 1.0])
@@ -92,10 +92,36 @@ def test_frames_are_reproducible(tmp_path):
     write_toy_collection(tmp_path, n=1)
     src = ImageSource()
     k = src.unit_keys(TOY_CFG, None, str(tmp_path))[0]
-    a = src.load(k, np.random.default_rng(5), TOY_CFG)[0]
-    b = src.load(k, np.random.default_rng(5), TOY_CFG)[0]
+    cfg = TOY_CFG | {"_input": str(tmp_path)}
+    a = src.load(k, np.random.default_rng(5), cfg)[0]
+    b = src.load(k, np.random.default_rng(5), cfg)[0]
     assert dumps(a.meta_json()) == dumps(b.meta_json())
     assert np.array_equal(a.depth, b.depth)
+
+
+def test_keys_and_frames_do_not_depend_on_the_folder(tmp_path):
+    """The same collection in two differently named folders: same keys, same frames (same rng seed)."""
+    import shutil
+
+    first = tmp_path / "a" / "collection"
+    write_toy_collection(first, n=2)
+    second = tmp_path / "elsewhere" / "renamed_copy"
+    shutil.copytree(first, second)
+    src = ImageSource()
+    ka = src.unit_keys(TOY_CFG, None, str(first))
+    kb = src.unit_keys(TOY_CFG, None, str(second))
+    assert ka == kb == ["image:1", "image:2"]
+    assert not any(str(tmp_path) in k for k in ka)
+    for k in ka:
+        fa = src.load(k, np.random.default_rng(7), TOY_CFG | {"_input": str(first)})[0]
+        fb = src.load(k, np.random.default_rng(7), TOY_CFG | {"_input": str(second)})[0]
+        assert fa.frame_id == fb.frame_id == k
+        assert dumps(fa.meta_json()) == dumps(fb.meta_json())
+        assert str(tmp_path).encode() not in dumps(fa.meta_json())
+        assert np.array_equal(fa.rgb, fb.rgb) and np.array_equal(fa.depth, fb.depth)
+    # the collection is read from `_input`: a key alone is not enough
+    with pytest.raises(ValueError, match="_input"):
+        src.load(ka[0], np.random.default_rng(7), TOY_CFG)
 
 
 # ------------------------------------------------------------------ whole-image drops
@@ -107,7 +133,7 @@ def _expect_drop(root: Path, cfg: dict, reason: str) -> None:
     reasons = []
     for k in keys:
         try:
-            src.load(k, np.random.default_rng(0), cfg)
+            src.load(k, np.random.default_rng(0), cfg | {"_input": str(root)})
             reasons.append(None)
         except DropUnit as e:
             reasons.append(e.reason)
@@ -168,7 +194,7 @@ def test_coco_geometric_frames(shared_data):
     frames, reasons = [], {}
     for k in keys[:12]:
         try:
-            frames.append(src.load(k, np.random.default_rng(0), {})[0])
+            frames.append(src.load(k, np.random.default_rng(0), {"_input": str(root)})[0])
         except DropUnit as e:
             reasons[e.reason] = reasons.get(e.reason, 0) + 1
     assert len(frames) >= 6, reasons
@@ -209,7 +235,7 @@ def test_coco_panoptic_uses_ground_stuff(shared_data):
     frames = []
     for k in keys:
         try:
-            frames.append(src.load(k, np.random.default_rng(0), {})[0])
+            frames.append(src.load(k, np.random.default_rng(0), {"_input": str(root)})[0])
         except DropUnit as e:
             assert e.reason == "too_few_objects"
     assert frames
@@ -254,8 +280,9 @@ def test_openimages_boxes_and_masks(tmp_path, with_masks):
     _write_openimages(tmp_path, with_masks)
     src = ImageSource()
     keys = src.unit_keys({}, None, str(tmp_path))
-    assert keys == [unit_key(tmp_path, "abc123")]
-    f = src.load(keys[0], np.random.default_rng(0), {"depth": {"estimator": "geometric", "size_fallback": False}})[0]
+    assert keys == [unit_key("abc123")] == ["image:abc123"]
+    f = src.load(keys[0], np.random.default_rng(0), {"depth": {"estimator": "geometric", "size_fallback": False},
+                                                     "_input": str(tmp_path)})[0]
     f.validate()
     assert f.meta["annotation_format"] == "openimages"
     by = {o.category: o for o in f.objects}

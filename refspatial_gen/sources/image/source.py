@@ -1,9 +1,10 @@
 """The `image` source: annotated photos + depth (estimated or provided) + intrinsics -> lifted 3D Frames.
 
-Unit key: "image:<absolute input folder>::<image id>" (the planner gives `load` no input path, so the key
-carries it). One unit = one photo = one Frame. Whole-image problems raise DropUnit with a reason
-(`image_undecodable`, `image_size_mismatch`, `annotation_out_of_bounds`, `annotation_size_mismatch`,
-`depth_size_mismatch`, `depth_missing`, `depth_not_metric`, `too_few_objects`, ...); single objects are
+Unit key: "image:<image id>": no folder, so moving or copying the collection changes neither the keys nor
+(the unit's random generator derives from the key) the output bytes. `load` reads the collection from
+`config["_input"]`, the absolute input folder the recipe loader puts in every source's config.
+One unit = one photo = one Frame. Whole-image problems raise DropUnit with a reason (`image_undecodable`,
+`image_size_mismatch`, `annotation_out_of_bounds`, `annotation_size_mismatch`, `depth_size_mismatch`, `depth_missing`, `depth_not_metric`, `too_few_objects`, ...); single objects are
 dropped with a reason counted in `Frame.meta["dropped_objects"]`.
 """
 
@@ -30,7 +31,6 @@ from refspatial_gen.sources.image.annotations import (
 from refspatial_gen.sources.image.intrinsics import MODES, Intrinsics, resolve_intrinsics
 
 KEY_PREFIX = "image:"
-KEY_SEP = "::"
 # thing categories whose top is a support surface when a horizontal plane lies on them
 SUPPORT_CATEGORIES = ("dining table", "table", "desk", "bed", "counter", "bench", "night_stand", "dresser",
                       "coffee_table", "sofa", "couch", "shelf", "cabinet")
@@ -78,15 +78,25 @@ CONFIG_FIELDS: dict[str, Field] = {
 }
 
 
-def unit_key(root: str | Path, image_id: str) -> str:
-    return f"{KEY_PREFIX}{Path(root).resolve()}{KEY_SEP}{image_id}"
+def unit_key(image_id: str) -> str:
+    """`image:<image id>` (the id as the annotations give it; no folder, see the module docstring)."""
+    return f"{KEY_PREFIX}{image_id}"
 
 
-def parse_key(key: str) -> tuple[str, str]:
-    if not key.startswith(KEY_PREFIX) or KEY_SEP not in key:
+def parse_key(key: str) -> str:
+    """`image:<image id>` -> image id."""
+    if not key.startswith(KEY_PREFIX) or len(key) == len(KEY_PREFIX):
         raise DropUnit("bad_unit_key", key)
-    root, iid = key[len(KEY_PREFIX):].rsplit(KEY_SEP, 1)
-    return root, iid
+    return key[len(KEY_PREFIX):]
+
+
+def input_root(config: dict[str, Any]) -> Path:
+    """The collection folder unit keys resolve against (`_input`, set by the recipe loader from --input/`input:`)."""
+    base = (config or {}).get("_input")
+    if not base:
+        raise ValueError("image load() needs config['_input'] (the input folder; the recipe loader sets it "
+                         "from --input or the recipe's `input:`)")
+    return Path(base).resolve()
 
 
 @lru_cache(maxsize=4)
@@ -153,11 +163,12 @@ class ImageSource:
             raise ValueError("the image source needs an input folder (recipe `input:` or --input)")
         cfg = _with_defaults(config)
         coll = load_collection(input_path, cfg["format"], cfg["annotations"], cfg["images_dir"])
-        keys = [unit_key(coll.root, iid) for iid in coll.ids()]
+        keys = [unit_key(iid) for iid in coll.ids()]
         return keys if scenes is None else keys[:scenes]
 
     def load(self, unit_key: str, rng: np.random.Generator, config: dict[str, Any]) -> list[Frame]:
-        root, iid = parse_key(unit_key)
+        iid = parse_key(unit_key)
+        root = input_root(config)
         cfg = _with_defaults(config)
         coll = load_collection(root, cfg["format"], cfg["annotations"], cfg["images_dir"])
         rec = coll.images.get(iid)
@@ -372,7 +383,7 @@ def build_frame(coll: Collection, rec: ImageRecord, rng: np.random.Generator, cf
                                 for c in cands if c.reason is not None],
         "crowd_categories": sorted(crowd), "ignored_categories": dict(sorted(ignored.items())),
     }
-    fid = f"image:{coll.root.name}/{rec.image_id}"
+    fid = unit_key(rec.image_id)  # no folder name: a renamed or moved copy gives the same bytes
     return Frame(fid, rgb, depth, cam, objects, surfaces, source="image", scene_id=fid, meta=_jsonable(meta))
 
 
