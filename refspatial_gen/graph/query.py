@@ -41,6 +41,7 @@ class GraphIndex:
         self.surfaces: dict[str, dict] = graph.meta.get("surfaces", {})
         self._between: dict | None = None
         self._dist: np.ndarray | None = None
+        self._pos: dict[int, int] = {x: k for k, x in enumerate(self.ids)}  # id -> row of the derived tables
 
     # ------------------------------------------------------------------ nodes
     def node(self, object_id: int) -> Node:
@@ -196,17 +197,23 @@ class GraphIndex:
             self._dist = d
         return self._dist
 
-    def _between_fact(self, a, b, c) -> RelationFact | None:
+    def between_code(self, a: int, b: int, c: int) -> tuple[bool | None, float]:
+        """(holds, t) of between(a, b, c) for three distinct known ids, without building a RelationFact
+        (the QA index's hot path; same table and rule as _between_fact)."""
         if self._between is None:
             xy = np.array([self.nodes[i].attributes["center"][:2] for i in self.ids], float).reshape(-1, 2)
             cats = [self.nodes[i].category for i in self.ids]
             self._between = between_table(xy, np.array(self.ids), cats, self._distance_matrix(), self.th)
-        pos = {x: k for k, x in enumerate(self.ids)}
+        pos = self._pos
         i, j, k = pos[int(a)], pos[int(b)], pos[int(c)]
         if j > k:
             j, k = k, j
         code, t = self._between.get((i, j, k), (0, 0.0))
-        return RelationFact("between", (a, b, c), holds_of(code), t, self.th.between_t_margin)
+        return holds_of(code), t
+
+    def _between_fact(self, a, b, c) -> RelationFact | None:
+        h, t = self.between_code(a, b, c)
+        return RelationFact("between", (a, b, c), h, t, self.th.between_t_margin)
 
     # ------------------------------------------------------------------ enumeration
     def instances(self, relation: str, decided_only: bool = True) -> Iterator[RelationFact]:

@@ -8,7 +8,7 @@ storage and mirror conventions); this module adds no geometry of relations.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -35,8 +35,9 @@ class Reject(Exception):
         self.reason = reason
 
 
-@dataclass(frozen=True)
-class Fact:
+class Fact(NamedTuple):
+    """A relation's decision and value (a NamedTuple: built hundreds of times per sample, cheaply)."""
+
     holds: bool | None
     value: float
 
@@ -132,10 +133,21 @@ class SceneIndex:
             out = None if mat is None else mat.get(args[::-1] if base[1] else args)
             self._fact_cache[key] = out
             return out
+        if relation == "between" and self._between_ok(args):
+            h, t = self.gindex.between_code(*args)
+            out = Fact(h, float(t))
+            self._fact_cache[key] = out
+            return out
         f = self.gindex.fact(relation, *args)
         out = None if f is None else Fact(f.holds, float(f.value))
         self._fact_cache[key] = out
         return out
+
+    def _between_ok(self, args: tuple) -> bool:
+        """The cases where GraphIndex.fact("between", ...) reaches its table (three distinct known objects,
+        gravity known); anything else takes the general path and its None."""
+        return (self.gindex.world and len(args) == 3 and len(set(args)) == 3
+                and all(isinstance(x, (int, np.integer)) and int(x) in self.nodes for x in args))
 
     def holds(self, relation: str, args: tuple) -> bool:
         """True/False; raises Reject("margin") when undecided and Reject("no_fact") when not evaluated."""
