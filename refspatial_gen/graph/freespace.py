@@ -68,13 +68,15 @@ def obstacle_footprints(frame: Frame, G: np.ndarray, z: float, gap: float) -> li
 
 
 def check_free_point(frame: Frame, graph: SceneGraph, region: FreeSpaceRegion,
-                     point: tuple[float, float] | None = None, obstacles: list[np.ndarray] | None = None) -> list[str]:
+                     point: tuple[float, float] | None = None, obstacles: list[np.ndarray] | None = None,
+                     surface_outline: np.ndarray | None = None) -> list[str]:
     """Problems with a free-space answer point (the region's own point by default); [] means valid.
 
     Checks: inside the image; the pixel's ray meets the surface plane in front of the camera; the hit
     lies on the support surface, inside the region, outside every obstacle footprint; and the depth map
     agrees with the surface there within the visibility tolerance. `obstacles` (footprints) may be
     passed in when many points of one frame are checked; by default they are computed from the frame.
+    `surface_outline` (the region's surface polygon in the gravity world, 4x2 CCW) likewise.
     """
     th = graph.meta.get("thresholds", {})
     tol = float(th.get("visibility_tolerance", 0.025))
@@ -89,15 +91,16 @@ def check_free_point(frame: Frame, graph: SceneGraph, region: FreeSpaceRegion,
     hit = pixel_to_plane(frame, G, px, py, region.z)
     if hit is None:
         return [f"pixel ({px}, {py}) does not see the plane z={region.z:.3f}"]
-    surf = {s.id: s for s in frame.surfaces}.get(region.surface_id)
-    if surf is None:
-        problems.append(f"unknown surface {region.surface_id!r}")
-    else:
-        from refspatial_gen.core.geometry import Box3D
+    if surface_outline is None:
+        surf = {s.id: s for s in frame.surfaces}.get(region.surface_id)
+        if surf is not None:
+            from refspatial_gen.core.geometry import Box3D
 
-        sb = Box3D(G @ surf.box.center, surf.box.size, G @ surf.box.rotation)
-        if not points_in_polygons(hit[None, :2], surface_polygon(sb)[None])[0, 0]:
-            problems.append(f"point ({hit[0]:.3f}, {hit[1]:.3f}) is off surface {region.surface_id}")
+            surface_outline = surface_polygon(Box3D(G @ surf.box.center, surf.box.size, G @ surf.box.rotation))
+    if surface_outline is None:
+        problems.append(f"unknown surface {region.surface_id!r}")
+    elif not points_in_polygons(hit[None, :2], surface_outline[None])[0, 0]:
+        problems.append(f"point ({hit[0]:.3f}, {hit[1]:.3f}) is off surface {region.surface_id}")
     if not shapely.contains_xy(Polygon(region.polygon_xy), hit[0], hit[1]):
         problems.append("point is outside the region polygon")
     fps = obstacle_footprints(frame, G, region.z, gap) if obstacles is None else obstacles
@@ -112,17 +115,24 @@ def check_free_point(frame: Frame, graph: SceneGraph, region: FreeSpaceRegion,
 
 
 # ----------------------------------------------------------------------------- region construction
+def _obstacles(geom: SceneGeom, z: float, gap: float) -> list[np.ndarray]:
+    """`obstacle_footprints` from the geometry's precomputed gravity-world boxes (same boxes, same test)."""
+    keep = (geom.lo[:, 2] <= z + gap) & (geom.hi[:, 2] > z + OBSTACLE_HEIGHT)
+    return [geom.footprints[i] for i in np.flatnonzero(keep)]
+
+
 def _view_polygon(geom: SceneGeom, z: float) -> Polygon | None:
     """The part of the plane at height z that the image covers."""
     W, H = geom.W, geom.H
     k = 12
     border = ([(x, 0) for x in np.linspace(0, W - 1, k)] + [(W - 1, y) for y in np.linspace(0, H - 1, k)]
               + [(x, H - 1) for x in np.linspace(W - 1, 0, k)] + [(0, y) for y in np.linspace(H - 1, 0, k)])
+    # per-pixel pixel_to_plane (not a batched matmul) keeps the hull bit-identical to the checker's rays
     pts = [pixel_to_plane(geom.frame, geom.gravity.rotation, x, y, z) for x, y in border]
     pts = [p[:2] for p in pts if p is not None and np.linalg.norm(p - geom.cam_pos_g) < 50.0]
     if len(pts) < 3:
         return None
-    return shapely.convex_hull(shapely.MultiPoint(pts))
+    return shapely.convex_hull(shapely.multipoints(np.array(pts)))
 
 
 def _largest(g) -> Polygon | None:
@@ -154,6 +164,7 @@ def _visible_samples(geom: SceneGeom, poly: Polygon, z: float) -> tuple[np.ndarr
         return np.zeros((0, 2)), step
     gx, gy = np.meshgrid(xs, ys, indexing="xy")
     pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
+    shapely.prepare(poly)
     pts = pts[shapely.contains_xy(poly, pts[:, 0], pts[:, 1])]
     if not len(pts):
         return pts, step
@@ -170,7 +181,7 @@ def _visible_samples(geom: SceneGeom, poly: Polygon, z: float) -> tuple[np.ndarr
 
 
 def _region(geom: SceneGeom, graph_stub: SceneGraph, sid: str, kind: str, anchors: tuple, poly: Polygon,
-            z: float, label: str, obstacles: list[np.ndarray]) -> FreeSpaceRegion | None:
+            z: float, label: str, obstacles: list[np.ndarray], outline: np.ndarray) -> FreeSpaceRegion | None:
     poly = poly.simplify(SIMPLIFY, preserve_topology=True)
     if not isinstance(poly, Polygon) or poly.is_empty:
         return None
@@ -192,7 +203,7 @@ def _region(geom: SceneGeom, graph_stub: SceneGraph, sid: str, kind: str, anchor
             continue
         r = FreeSpaceRegion(sid, kind, tuple(anchors), poly_xy, z, round(area, 6),
                             (float(hit[0]), float(hit[1]), float(z)), p, label)
-        if not check_free_point(geom.frame, graph_stub, r, obstacles=obstacles):
+        if not check_free_point(geom.frame, graph_stub, r, obstacles=obstacles, surface_outline=outline):
             return r
     return None
 
@@ -226,7 +237,8 @@ def _build(geom: SceneGeom) -> list[FreeSpaceRegion]:
         view = _view_polygon(geom, z)
         if surf.is_empty or view is None:
             continue
-        obst_fp = obstacle_footprints(geom.frame, G, z, th.support_gap)
+        obst_fp = _obstacles(geom, z, th.support_gap)
+        outline = surface_polygon(s.box)
         obst = [Polygon(fp).buffer(th.free_clearance, join_style="mitre") for fp in obst_fp]
         free = surf.intersection(view)
         if obst:
@@ -246,7 +258,7 @@ def _build(geom: SceneGeom) -> list[FreeSpaceRegion]:
                 for kind, d in dirs:
                     poly = _largest(free.intersection(_wedge(c, d, radius)))
                     if poly is not None:
-                        r = _region(geom, stub, s.id, kind, (int(geom.ids[i]),), poly, z, "", obst_fp)
+                        r = _region(geom, stub, s.id, kind, (int(geom.ids[i]),), poly, z, "", obst_fp, outline)
                         if r is not None:
                             out.append(r)
         pairs = set()
@@ -260,7 +272,7 @@ def _build(geom: SceneGeom) -> list[FreeSpaceRegion]:
             hull = shapely.convex_hull(shapely.MultiPoint(np.vstack([geom.footprints[i], geom.footprints[j]])))
             poly = _largest(free.intersection(hull))
             if poly is not None:
-                r = _region(geom, stub, s.id, "between", (int(geom.ids[i]), int(geom.ids[j])), poly, z, "", obst_fp)
+                r = _region(geom, stub, s.id, "between", (int(geom.ids[i]), int(geom.ids[j])), poly, z, "", obst_fp, outline)
                 if r is not None:
                     out.append(r)
         lab = labels.get(s.id, {})
@@ -274,7 +286,7 @@ def _build(geom: SceneGeom) -> list[FreeSpaceRegion]:
             sq = Polygon([p, p + e1, p + e1 + e2, p + e2])
             poly = _largest(free.intersection(sq))
             if poly is not None:
-                r = _region(geom, stub, s.id, "corner", (), poly, z, f"{name} corner", obst_fp)
+                r = _region(geom, stub, s.id, "corner", (), poly, z, f"{name} corner", obst_fp, outline)
                 if r is not None:
                     out.append(r)
         for name, (a, b) in sorted(lab.get("edges", {}).items()):
@@ -284,7 +296,7 @@ def _build(geom: SceneGeom) -> list[FreeSpaceRegion]:
             band = Polygon([a, b, b + inward * w, a + inward * w])
             poly = _largest(free.intersection(band))
             if poly is not None:
-                r = _region(geom, stub, s.id, "edge", (), poly, z, name, obst_fp)
+                r = _region(geom, stub, s.id, "edge", (), poly, z, name, obst_fp, outline)
                 if r is not None:
                     out.append(r)
     return out
