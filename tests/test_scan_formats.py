@@ -127,7 +127,7 @@ def test_bad_input_drops_only_that_frame(tmp_path, defect, reason):
     if defect == "nan_depth":  # an .npy depth with NaN in a frame whose encoding is metres
         pass
     src = get_source("scan")
-    cfg = {k: f.default for k, f in src.CONFIG_FIELDS.items()} | {"min_mask_pixels": 16}
+    cfg = {k: f.default for k, f in src.CONFIG_FIELDS.items()} | {"min_mask_pixels": 16, "_input": str(root)}
     keys = src.unit_keys(cfg, None, str(root))
     assert len(keys) == 3
     with pytest.raises(DropUnit) as e:
@@ -144,6 +144,37 @@ def test_unit_keys_are_deterministic_and_thinned(toy_scan):
     assert src.unit_keys({}, None, str(root)) == src.unit_keys({"reader": "generic"}, None, str(root))
     with pytest.raises(ValueError):
         src.unit_keys({}, None, None)
+
+
+def test_keys_and_frames_do_not_depend_on_the_folder(toy_scan, tmp_path):
+    """The same scan in two folders elsewhere (one a symlink): same keys, same frames (same rng seed)."""
+    import shutil
+
+    from refspatial_gen.core.serialize import dumps
+    from refspatial_gen.sources.scan import parse_unit_key
+
+    root, _ = toy_scan
+    copy = tmp_path / "moved" / "deeper" / "scan"
+    shutil.copytree(root, copy)
+    link = tmp_path / "link_to_scan"
+    link.symlink_to(copy, target_is_directory=True)
+    src = get_source("scan")
+    cfg = {k: f.default for k, f in src.CONFIG_FIELDS.items()} | {"min_mask_pixels": 16}
+    keys = {p: src.unit_keys(cfg, None, str(p)) for p in (root, copy, link)}
+    assert keys[root] == keys[copy] == keys[link] and keys[root]
+    assert all(k.startswith("scan:generic:.#") and str(tmp_path) not in k for k in keys[root])
+    assert parse_unit_key(keys[root][0]) == ("generic", ".", keys[root][0].split("#")[1])
+    for k in keys[root]:
+        fs = [src.load(k, np.random.default_rng(11), cfg | {"_input": str(p)})[0] for p in (root, copy, link)]
+        metas = [dumps(f.meta_json()) for f in fs]
+        assert metas[0] == metas[1] == metas[2] and str(tmp_path).encode() not in metas[0]
+        for f in fs[1:]:
+            assert np.array_equal(f.rgb, fs[0].rgb) and np.array_equal(f.depth, fs[0].depth)
+    # a key names no folder: load() needs `_input`, and old absolute-folder keys are refused clearly
+    with pytest.raises(ValueError, match="_input"):
+        src.load(keys[root][0], np.random.default_rng(11), {k: v for k, v in cfg.items() if k != "input"})
+    with pytest.raises(ValueError, match="relative"):
+        parse_unit_key(f"scan:generic:{root}#000")
 
 
 def _write_mcap(path: Path, frames, encoding: str = "protobuf", with_boxes: bool = True) -> None:
@@ -242,7 +273,8 @@ def test_mcap_recording(tmp_path, encoding):
     rec.mkdir()
     _write_mcap(rec / "session.mcap", [frames[0], f6], encoding)
     src = get_source("scan")
-    cfg = {k: f.default for k, f in src.CONFIG_FIELDS.items()} | {"min_mask_pixels": 16, "options": {"up": [0, 0, 1]}}
+    cfg = {k: f.default for k, f in src.CONFIG_FIELDS.items()} | {"min_mask_pixels": 16, "options": {"up": [0, 0, 1]},
+                                                                  "_input": str(rec)}
     keys = src.unit_keys(cfg, None, str(rec))
     assert len(keys) == 2 and keys[0].startswith("scan:mcap:")
     for k, truth in zip(keys, [frames[0], f6]):
@@ -261,7 +293,7 @@ def test_mcap_missing_pose_drops_frame(tmp_path):
     rec.mkdir()
     _write_mcap(rec / "session.mcap", frames, "json")
     src = get_source("scan")
-    cfg = {"options": {"up": [0, 0, 1], "world_frame": "map"}}
+    cfg = {"options": {"up": [0, 0, 1], "world_frame": "map"}, "_input": str(rec)}
     (key,) = src.unit_keys(cfg, None, str(rec))
     with pytest.raises(DropUnit) as e:
         src.load(key, np.random.default_rng(0), cfg)

@@ -110,7 +110,7 @@ def test_trajectory_sequences_and_depth_encodings(shared_data):
     raw = read_depth(root / "sun_sample" / "SUN_depth.png", "sun_shift")
     mm = read_depth(root / "sun_sample" / "SUN_depth_mm.png", "mm")
     assert np.array_equal(raw, mm)
-    cfg = {"min_visible_objects": 0}
+    cfg = {"min_visible_objects": 0, "_input": str(root)}
     frames = {k.split("#")[1]: src.load(k, np.random.default_rng(0), cfg | {"keyframe_stride": 2})[0] for k in keys}
     tum = frames["tum_sample/TUM"]
     assert tum.meta["depth_encoding"] == "tum5000" and 0.5 < np.median(tum.depth[tum.depth > 0]) < 4.0

@@ -58,8 +58,8 @@ def test_usd_stage_boxes_and_rendered_views(tmp_path):
     src = get_source("scan")
     cfg = {k: f.default for k, f in src.CONFIG_FIELDS.items()} | {"blur_threshold": 0.0, "min_mask_pixels": 16}
     keys = src.unit_keys(cfg, None, str(tmp_path))
-    assert keys == [f"scan:usd:{tmp_path.resolve()}#World.cam_front"]
-    (f,) = src.load(keys[0], np.random.default_rng(0), cfg)
+    assert keys == ["scan:usd:.#World.cam_front"]
+    (f,) = src.load(keys[0], np.random.default_rng(0), cfg | {"_input": str(tmp_path)})
     assert f.meta["gravity_source"] == "given" and f.camera.gravity_known
     cats = {o.category: o for o in f.objects}
     assert set(cats) == {"table", "box", "book", "can"}
@@ -121,7 +121,7 @@ def test_colmap_sfm_round_trip_pose_error(tmp_path):
     cfg = {k: f.default for k, f in src.CONFIG_FIELDS.items()} | {"blur_threshold": 0.0, "min_mask_pixels": 16}
     keys = src.unit_keys(cfg, None, str(proj))
     assert len(keys) == 8 and keys[0].startswith("scan:colmap:")
-    (f,) = src.load(keys[3], np.random.default_rng(0), cfg)
+    (f,) = src.load(keys[3], np.random.default_rng(0), cfg | {"_input": str(proj)})
     assert f.meta["gravity_source"] == "given" and f.meta["alignment"]["max_centre_err_m"] < 0.01
     assert {o.category for o in f.objects} == {"box", "book", "can"}
     np.testing.assert_allclose(f.camera.world_from_cam[:3, 3], cams[3].world_from_cam[:3, 3], atol=0.01)

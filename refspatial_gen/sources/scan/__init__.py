@@ -5,6 +5,8 @@ MCAP recordings and the generic scan format (docs/scan.md) into ScanViews; frame
 rules (depth checks, keyframe tests, visibility, masks, gravity) to make Frames.
 """
 
-from refspatial_gen.sources.scan.source import CONFIG_FIELDS, ScanSource, load_frame, parse_unit_key
+from refspatial_gen.sources.scan.source import (
+    CONFIG_FIELDS, ScanSource, input_root, load_frame, parse_unit_key, unit_key,
+)
 
-__all__ = ["CONFIG_FIELDS", "ScanSource", "load_frame", "parse_unit_key"]
+__all__ = ["CONFIG_FIELDS", "ScanSource", "input_root", "load_frame", "parse_unit_key", "unit_key"]

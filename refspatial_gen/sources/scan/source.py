@@ -1,14 +1,16 @@
 """ScanSource: real scans (and scan-like recordings) -> Frames, one keyframe per unit.
 
-Unit keys are `scan:<reader>:<absolute input folder>#<view id>`: the folder is in the key because
-workers get only the key and the recipe section. Views are listed sorted by the reader, then thinned
+Unit keys are `scan:<reader>:<folder relative to the input root, '.' for the root>#<view id>`: no
+absolute path, so moving or copying the data folder changes neither the keys nor (the unit's random
+generator derives from the key) the output bytes. `load` resolves the folder against `config["_input"]`,
+the absolute input folder the recipe loader puts in every source's config. Views are listed sorted by the reader, then thinned
 to every `keyframe_stride`-th view of each sequence; blur and the minimum number of visible objects are
 checked when the frame is loaded (DropUnit "blurry" / "too_few_visible_objects").
 """
 
 from __future__ import annotations
 
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any
 
 import numpy as np
@@ -41,13 +43,35 @@ CONFIG_FIELDS: dict[str, Field] = {
 }
 
 
-def parse_unit_key(key: str) -> tuple[str, Path, str]:
-    """`scan:<reader>:<root>#<view>` -> (reader, root, view)."""
-    if not key.startswith("scan:") or "#" not in key:
+def unit_key(reader: str, folder: str, view_id: str) -> str:
+    """`scan:<reader>:<folder>#<view>`; `folder` is relative to the input root ('.' for the root)."""
+    return f"scan:{reader}:{folder}#{view_id}"
+
+
+def parse_unit_key(key: str) -> tuple[str, str, str]:
+    """`scan:<reader>:<folder>#<view>` -> (reader, folder relative to the input root, view).
+
+    Absolute folders (the old key format) and '..' are refused: a key must not depend on, or escape,
+    where the input folder lives.
+    """
+    if not key.startswith("scan:") or "#" not in key or ":" not in key[5:]:
         raise ValueError(f"not a scan unit key: {key!r}")
     body, view = key[5:].rsplit("#", 1)
-    reader, root = body.split(":", 1)
-    return reader, Path(root), view
+    reader, folder = body.split(":", 1)
+    rel = PurePosixPath(folder)
+    if not folder or rel.is_absolute() or ".." in rel.parts or Path(folder).is_absolute():
+        raise ValueError(f"scan unit key {key!r}: the folder must be relative to the input root "
+                         f"(keys with absolute folders come from an older version; plan again)")
+    return reader, folder, view
+
+
+def input_root(config: dict[str, Any]) -> Path:
+    """The absolute input folder that relative unit keys resolve against (recipe/CLI `_input`, else `input`)."""
+    base = config.get("_input") or config.get("input")
+    if not base:
+        raise ValueError("scan load() needs config['_input'] (the input folder; the recipe loader sets it "
+                         "from --input or the recipe's `input:`)")
+    return Path(base).resolve()
 
 
 def thin(views: list[str], stride: int) -> list[str]:
@@ -80,11 +104,16 @@ class ScanSource:
         views = thin(get_reader(name).views(root, config), int(config.get("keyframe_stride") or 1))
         if config.get("max_views"):
             views = views[: int(config["max_views"])]
-        keys = [f"scan:{name}:{root}#{v}" for v in views]
+        keys = [unit_key(name, ".", v) for v in views]
         return keys if scenes is None else keys[:scenes]
 
     def load(self, unit_key: str, rng: np.random.Generator, config: dict[str, Any]) -> list[Frame]:
-        name, root, view_id = parse_unit_key(unit_key)
+        name, folder, view_id = parse_unit_key(unit_key)
+        root = input_root(config)
+        if folder != ".":
+            root = root / folder
+        if not root.exists():
+            raise DropUnit("input_missing", f"{root} does not exist")
         view = get_reader(name).read(root, view_id, config)
         frame = view_to_frame(view, config)
         return [frame]
@@ -101,4 +130,4 @@ def load_frame(path: str | Path, view_id: str | None = None, config: dict[str, A
     return view_to_frame(r.read(root, vid, config), config)
 
 
-__all__ = ["ScanSource", "CONFIG_FIELDS", "DropUnit", "load_frame", "parse_unit_key"]
+__all__ = ["ScanSource", "CONFIG_FIELDS", "DropUnit", "input_root", "load_frame", "parse_unit_key", "unit_key"]
