@@ -44,11 +44,29 @@ def iter_dir_samples(d: str | Path):
 
 
 def verify_dir(d: str | Path, max_failures: int = 1000) -> dict:
-    from refspatial_gen.qa.verify import verify_samples
+    """Shard integrity (size and sha256 against index.json) first, then every QA pair.
 
-    out = verify_samples(iter_dir_samples(d))
+    A shard with an integrity problem is reported and its samples are not read (they cannot be trusted)."""
+    from refspatial_gen.qa.verify import verify_samples
+    from refspatial_gen.shards.integrity import check_shards
+
+    problems = check_shards(Path(d))
+    bad = {Path(p["file"]).name for p in problems}
+    out = verify_samples(s for name, s in _iter_named(d) if name not in bad)
+    out["shard_problems"] = problems
     out["failures"] = out["failures"][:max_failures]
     return out
+
+
+def _iter_named(d: str | Path):
+    from refspatial_gen.shards.index import read_index
+    from refspatial_gen.shards.reader import read_samples
+
+    d = Path(d)
+    for row in read_index(d)["shards"]:
+        if (d / row["name"]).is_file():
+            for s in read_samples(d / row["name"]):
+                yield row["name"], s
 
 
 def _verify(args: argparse.Namespace) -> int:
@@ -60,8 +78,10 @@ def _verify(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(res, indent=1, sort_keys=True))
     else:
+        for p in res["shard_problems"]:
+            print(f"{p['file']}: {p['problem']}: {p.get('detail', '')}")
         for f in res["failures"]:
             print(f"{f['sample_id']} {f['qa_id']} [{f['template']}]: {f['reason']}")
         pct = 100.0 * res["passed"] / res["qa_pairs"] if res["qa_pairs"] else 100.0
         print(f"{res['passed']}/{res['qa_pairs']} QA pairs pass ({pct:.2f}%), {res['failed']} fail")
-    return 0 if res["failed"] == 0 else 1
+    return 0 if res["failed"] == 0 and not res["shard_problems"] else 1
