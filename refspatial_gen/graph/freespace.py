@@ -153,8 +153,24 @@ def _wedge(apex: np.ndarray, direction: np.ndarray, radius: float, k: int = 9) -
     return Polygon(np.vstack([apex, arc]))
 
 
-def _visible_samples(geom: SceneGeom, poly: Polygon, z: float) -> tuple[np.ndarray, float]:
-    """Grid points of `poly` that the camera sees on the plane at height z, and the grid cell size."""
+def _sample_area_bound(poly: Polygon, min_step: float) -> float:
+    """An upper bound on `len(samples) * step**2` from `_visible_samples`, from the outline alone.
+
+    Each sample owns a disjoint step x step grid cell centred inside `poly`, so every cell lies within
+    r = step/sqrt(2) of the polygon: the cells' total area is at most area + perimeter * r + (vertices) *
+    pi * r**2 (the r-neighbourhood: a strip along every edge and a disc at every vertex). The step grows
+    with the area (MAX_SAMPLES), so the bound uses the larger of both candidate steps.
+    """
+    step = max(min_step, float(np.sqrt(poly.area / MAX_SAMPLES)))
+    r = step / np.sqrt(2.0)
+    nv = len(poly.exterior.coords) + sum(len(h.coords) for h in poly.interiors)
+    return poly.area + poly.length * r + nv * np.pi * r * r
+
+
+def _visible_samples(geom: SceneGeom, poly: Polygon, z: float, min_area: float = 0.0) -> tuple[np.ndarray, float]:
+    """Grid points of `poly` that the camera sees on the plane at height z, and the grid cell size.
+    Returns no points as soon as fewer than `min_area / step**2` grid points lie inside `poly` (the caller
+    rejects such regions anyway), skipping the projection."""
     step = geom.th.free_grid
     step = max(step, float(np.sqrt(poly.area / MAX_SAMPLES)))
     x0, y0, x1, y1 = poly.bounds
@@ -162,12 +178,13 @@ def _visible_samples(geom: SceneGeom, poly: Polygon, z: float) -> tuple[np.ndarr
     ys = np.arange(y0 + step / 2, y1, step)
     if not len(xs) or not len(ys):
         return np.zeros((0, 2)), step
-    gx, gy = np.meshgrid(xs, ys, indexing="xy")
-    pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
+    pts = np.empty((len(ys) * len(xs), 2))  # the meshgrid(xs, ys) points, row by row
+    pts[:, 0] = np.tile(xs, len(ys))
+    pts[:, 1] = np.repeat(ys, len(xs))
     shapely.prepare(poly)
     pts = pts[shapely.contains_xy(poly, pts[:, 0], pts[:, 1])]
-    if not len(pts):
-        return pts, step
+    if not len(pts) or len(pts) * step * step < min_area:
+        return pts[:0], step
     uv, zc = geom.project_world(np.column_stack([pts, np.full(len(pts), z)]))
     W, H = geom.W, geom.H
     ok = np.isfinite(uv).all(axis=1) & (zc > 0)
@@ -185,7 +202,9 @@ def _region(geom: SceneGeom, graph_stub: SceneGraph, sid: str, kind: str, anchor
     poly = poly.simplify(SIMPLIFY, preserve_topology=True)
     if not isinstance(poly, Polygon) or poly.is_empty:
         return None
-    vis, step = _visible_samples(geom, poly, z)
+    if _sample_area_bound(poly, geom.th.free_grid) < geom.th.free_min_area:
+        return None  # too small whatever the visibility: skip the sampling
+    vis, step = _visible_samples(geom, poly, z, geom.th.free_min_area)
     area = len(vis) * step * step
     if area < geom.th.free_min_area:
         return None
