@@ -75,7 +75,8 @@ def test_depth_anything_through_the_image_source(tiny_depth_anything, shared_dat
     """The whole path: COCO photos -> tiny Depth Anything -> scale recovery -> gravity -> lifted frames."""
     pytest.importorskip("open3d")
     src = ImageSource()
-    cfg = {"depth": {"estimator": "depth-anything", "model_dir": str(tiny_depth_anything)}, "gravity": "prior"}
+    cfg = {"depth": {"estimator": "depth-anything", "model_dir": str(tiny_depth_anything)}, "gravity": "prior",
+           "_input": str(shared_data / "coco_tiny_train2017")}
     keys = src.unit_keys(cfg, None, str(shared_data / "coco_tiny_train2017"))
     frames, reasons = [], []
     for k in keys[:8]:
@@ -89,7 +90,8 @@ def test_depth_anything_through_the_image_source(tiny_depth_anything, shared_dat
         assert f.meta["depth"]["origin"] == "depth-anything:disparity+scale:contacts"
         for o in f.objects:
             assert o.mask.area > 0 and np.all(np.isfinite(o.box.center))
-    cfg_rel = {"depth": {"estimator": "depth-anything", "model_dir": str(tiny_depth_anything), "scale_recovery": "none"}}
+    cfg_rel = {"depth": {"estimator": "depth-anything", "model_dir": str(tiny_depth_anything), "scale_recovery": "none"},
+               "_input": cfg["_input"]}
     with pytest.raises(DropUnit) as e:
         src.load(keys[0], np.random.default_rng(0), cfg_rel)
     assert e.value.reason in ("depth_not_metric", "too_few_objects")
