@@ -44,6 +44,8 @@ QA_FIELDS: dict[str, Field] = {
     "point_slack": Field(int, default=1, min=0, max=100,
                          doc="balance: an answer point may make its image quadrant lead the rarest one by at most this"),
     "multiview_pairs": Field(int, default=2, min=0, max=15, doc="multi-view questions per multi-frame sample"),
+    "point_depth": Field(int, default=0, min=0, max=MAX_QA_PER_SAMPLE,
+                         doc="built-in point/depth questions (qa/pointdepth.py) added per sample; 0 = off"),
 }
 FAMILY_FIELDS: dict[str, Field] = {
     "weight": Field(float, default=1.0, min=0.0),
@@ -70,6 +72,7 @@ class QAConfig:
     point_slack: int = 1
     multiview_pairs: int = 2
     source_files: list[str] = field(default_factory=list)
+    point_depth: int = 0  # built-in point/depth questions per sample (qa/pointdepth.py)
 
     @property
     def templates(self) -> list[Template]:
@@ -124,7 +127,7 @@ def load_qa_config(section: dict | None, recipe_file: str, lines: dict[tuple, in
         raise RecipeError(file, line_of(lines, path + ("families",)), "every family has weight 0")
     mix = {int(k): float(v) for k, v in (sec["steps"] or {}).items()}
     return QAConfig(fams, sec["max_per_sample"], sec["attempts"], sec["budget"], mix, sec["point_slack"],
-                    sec["multiview_pairs"], sorted(files))
+                    sec["multiview_pairs"], sorted(files), sec["point_depth"])
 
 
 def _copy_for_family(t: Template, family: str) -> Template:

@@ -125,6 +125,9 @@ def generate_qa(frames: list[Frame], graphs: list[SceneGraph], rng: np.random.Ge
         per_family[fam.name] = per_family.get(fam.name, 0) + 1
         if _is_multiview(t):
             mv_count += 1
+    if config.point_depth:  # built-in camera-frame point/depth questions (work on frames without objects)
+        from refspatial_gen.qa.pointdepth import point_depth_qa
+        out += point_depth_qa(frames, rng, min(config.point_depth, config.max_per_sample - len(out)), len(out))
     return out
 
 

@@ -350,6 +350,9 @@ def verify_qa(qa: QAPair, frames: dict[str, Frame], graphs: dict[str, SceneGraph
     w = worlds[fid]
     if tuple(qa.image_size) != (frame.camera.width, frame.camera.height):
         problems.append(f"image_size {list(qa.image_size)} is not the frame's {[frame.camera.width, frame.camera.height]}")
+    if qa.family == "point_depth":  # built-in camera-frame questions: no program, re-checked on the depth map
+        from refspatial_gen.qa.verify_pointdepth import verify_point_depth
+        return problems + verify_point_depth(qa, frame)
     # --- step count
     if not 1 <= qa.steps <= 5:
         problems.append(f"step count {qa.steps} out of range 1..5")

@@ -1,0 +1,179 @@
+"""Camera-frame questions about image points and depth (the `point_depth` family).
+
+Why a built-in family and not templates: frames with depth but no objects (RGB-D trajectories) have
+nothing a template can bind, yet every pixel with a reliable depth supports RefSpatial-style questions:
+the depth at a point, which of two points is closer, and how far the camera must turn to face a point.
+Points are picked only where the 5x5 neighbourhood depth agrees within 2 cm (no depth edges) and away
+from the image border, so a reader's one-pixel slip cannot change the answer.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from refspatial_gen.core.mask import denormalise_point, normalise_point
+from refspatial_gen.core.model import Frame, QAPair
+from refspatial_gen.qa.render import LETTERS, fmt_length, fmt_points, fmt_turn
+
+FAMILY = "point_depth"
+SMOOTH_TOL = 0.02  # m: max - min depth in the 5x5 neighbourhood
+CHOICE_MARGIN_ABS = 0.05  # m
+CHOICE_MARGIN_REL = 0.03  # share of the larger depth
+MIN_TURN = math.radians(5.0)  # rotations smaller than this have no clear direction
+MIN_DEPTH, MAX_DEPTH = 0.1, 20.0
+KINDS = ("depth", "choice", "rotation_horizontal", "rotation_vertical")
+
+DEPTH_TEXTS = ("How far from the camera is the point {p}?",
+               "What is the depth of the point {p} from the camera?",
+               "How far is the point {p} from the camera, in depth?")
+CHOICE_TEXTS = {"front": ("Which point is closer to the camera: {a} or {b}?",
+                          "Which of these points is nearer to the camera: {a} or {b}?"),
+                "behind": ("Which point is farther from the camera: {a} or {b}?",
+                           "Which of these points is farther away from the camera: {a} or {b}?")}
+TURN_TEXTS = {"horizontal": ("How should the camera rotate horizontally to face the point {p}?",
+                             "How far must the camera turn left or right to face the point {p}?"),
+              "vertical": ("How should the camera tilt up or down to face the point {p}?",
+                           "How far must the camera rotate vertically to face the point {p}?")}
+
+
+def valid_pixels(frame: Frame) -> np.ndarray:
+    """(N, 2) integer (u, v) pixels with a reliable depth: smooth 5x5 neighbourhood, away from the border."""
+    import cv2
+
+    d = np.nan_to_num(np.asarray(frame.depth, np.float32), nan=0.0, posinf=0.0, neginf=0.0)
+    h, w = d.shape
+    k = np.ones((5, 5), np.uint8)
+    hi = cv2.dilate(d, k, borderType=cv2.BORDER_REPLICATE)
+    lo = cv2.erode(d, k, borderType=cv2.BORDER_REPLICATE)
+    ok = (lo >= MIN_DEPTH) & (hi <= MAX_DEPTH) & (hi - lo <= SMOOTH_TOL)
+    bx, by = max(8, int(0.05 * w)), max(8, int(0.05 * h))
+    ok[:by], ok[h - by:], ok[:, :bx], ok[:, w - bx:] = False, False, False, False
+    vs, us = np.nonzero(ok)
+    return np.stack([us, vs], axis=1)
+
+
+def _snap(frame: Frame, uv: np.ndarray) -> tuple[tuple[float, float], tuple[int, int]] | None:
+    """The stored normalised point and the pixel it denormalises to (must still be a reliable pixel)."""
+    W, H = frame.camera.width, frame.camera.height
+    p = normalise_point(float(uv[0]), float(uv[1]), W, H)
+    u, v = denormalise_point(p[0], p[1], W, H)
+    if (u, v) != (int(uv[0]), int(uv[1])):
+        return None  # three decimals cannot name this pixel exactly (very wide images)
+    return p, (u, v)
+
+
+def turn_angle(frame: Frame, u: int, v: int, axis: str) -> float | None:
+    """Signed camera rotation (rad) to face the ray through pixel centre (u, v); + = right / up."""
+    cam = frame.camera
+    ray = np.array([(u + 0.5 - cam.cx) / cam.fx, (v + 0.5 - cam.cy) / cam.fy, 1.0])
+    if axis == "horizontal":
+        return float(math.atan2(ray[0], ray[2]))
+    if not cam.gravity_known:
+        return None
+    R = cam.world_from_cam[:3, :3]
+    d = R @ ray
+    fwd = R[:, 2].copy()
+    fwd[2] = 0.0
+    n = float(np.linalg.norm(fwd))
+    if n < 0.3:  # camera looks almost straight up or down: "up/down" is ill-defined
+        return None
+    return float(math.atan2(d[2], d @ (fwd / n)))
+
+
+def _pick_pixels(frame: Frame, pix: np.ndarray, rng: np.random.Generator, n: int,
+                 used: set) -> list[tuple[tuple[float, float], tuple[int, int]]]:
+    out = []
+    for _ in range(8 * n):
+        if len(out) >= n or len(pix) == 0:
+            break
+        s = _snap(frame, pix[int(rng.integers(len(pix)))])
+        if s is None or s[1] in used:
+            continue
+        out.append(s)
+    return out
+
+
+def point_depth_qa(frames: list[Frame], rng: np.random.Generator, n: int, start: int = 0,
+                   kinds: tuple[str, ...] = KINDS) -> list[QAPair]:
+    """Up to `n` checked point/depth QA pairs over the given frames; ids continue from `start`."""
+    out: list[QAPair] = []
+    if n <= 0 or not frames:
+        return out
+    fi = int(rng.integers(len(frames)))
+    frame = frames[fi]
+    if frame.depth is None:
+        return out
+    pix = valid_pixels(frame)
+    if len(pix) < 2:
+        return out
+    used: set = set()
+    order = [kinds[int(k)] for k in rng.permutation(len(kinds))]
+    for attempt in range(4 * n):
+        if len(out) >= n:
+            break
+        kind = order[attempt % len(order)]
+        qa_id = f"{frames[0].frame_id}:{start + len(out):02d}"
+        qa = _make(frame, kind, pix, rng, used, qa_id)
+        if qa is not None:
+            out.append(qa)
+    return out
+
+
+def _make(frame: Frame, kind: str, pix: np.ndarray, rng: np.random.Generator, used: set,
+          qa_id: str) -> QAPair | None:
+    d = frame.depth
+    size = (frame.camera.width, frame.camera.height)
+    base: dict[str, Any] = dict(qa_id=qa_id, family=FAMILY, steps=1, frame_ids=[frame.frame_id], image_size=size,
+                                checks=["smooth_depth", "outside_margin"])
+    if kind == "depth":
+        got = _pick_pixels(frame, pix, rng, 1, used)
+        if not got:
+            return None
+        p, (u, v) = got[0]
+        z = float(d[v, u])
+        used.add((u, v))
+        q = DEPTH_TEXTS[int(rng.integers(len(DEPTH_TEXTS)))].format(p=fmt_points([p]))
+        struct = {"kind": "number", "value": round(z, 6), "unit": "m", "quantity": "depth",
+                  "query_points": [list(p)]}
+        return QAPair(template=f"{FAMILY}/depth", question=q, answer=fmt_length(z), answer_struct=struct,
+                      relations=["depth"], **base)
+    if kind == "choice":
+        got = _pick_pixels(frame, pix, rng, 2, used)
+        if len(got) < 2:
+            return None
+        (pa, (ua, va)), (pb, (ub, vb)) = got
+        za, zb = float(d[va, ua]), float(d[vb, ub])
+        if abs(za - zb) <= max(CHOICE_MARGIN_ABS, CHOICE_MARGIN_REL * max(za, zb)):
+            return None
+        rel = "front" if rng.integers(2) == 0 else "behind"
+        correct = int(np.argmin([za, zb]) if rel == "front" else np.argmax([za, zb]))
+        used.update({(ua, va), (ub, vb)})
+        texts = [fmt_points([pa]), fmt_points([pb])]
+        q = CHOICE_TEXTS[rel][int(rng.integers(len(CHOICE_TEXTS[rel])))].format(
+            a=f"({LETTERS[0]}) {texts[0]}", b=f"({LETTERS[1]}) {texts[1]}")
+        answer = f"({LETTERS[correct]})" if rng.integers(2) == 0 else f"({LETTERS[correct]}) {texts[correct]}"
+        struct = {"kind": "choice", "options": texts, "letter": LETTERS[correct], "answer": texts[correct],
+                  "relation": rel, "query_points": [list(pa), list(pb)], "depths": [round(za, 6), round(zb, 6)]}
+        return QAPair(template=f"{FAMILY}/{rel}", question=q, answer=answer, answer_struct=struct,
+                      relations=["depth", rel], **base)
+    axis = kind.split("_")[1]
+    for _ in range(6):
+        got = _pick_pixels(frame, pix, rng, 1, used)
+        if not got:
+            return None
+        p, (u, v) = got[0]
+        a = turn_angle(frame, u, v, axis)
+        if a is None:
+            return None
+        if abs(a) < MIN_TURN:
+            continue
+        used.add((u, v))
+        q = TURN_TEXTS[axis][int(rng.integers(len(TURN_TEXTS[axis])))].format(p=fmt_points([p]))
+        struct = {"kind": "number", "value": round(a, 6), "unit": "rad", "quantity": kind,
+                  "query_points": [list(p)]}
+        return QAPair(template=f"{FAMILY}/{kind}", question=q, answer=fmt_turn(a, axis), answer_struct=struct,
+                      relations=[kind], **base)
+    return None
