@@ -35,8 +35,8 @@ CHOICE_TEXTS = {"front": ("Which point is closer to the camera: {a} or {b}?",
                            "Which of these points is farther away from the camera: {a} or {b}?")}
 TURN_TEXTS = {"horizontal": ("How should the camera rotate horizontally to face the point {p}?",
                              "How far must the camera turn left or right to face the point {p}?"),
-              "vertical": ("How should the camera tilt up or down to face the point {p}?",
-                           "How far must the camera rotate vertically to face the point {p}?")}
+              "vertical": ("Starting from a level view, how should the camera tilt up or down to face the point {p}?",
+                           "From a level view, how far must the camera rotate vertically to face the point {p}?")}
 
 
 def valid_pixels(frame: Frame) -> np.ndarray:
@@ -83,17 +83,39 @@ def turn_angle(frame: Frame, u: int, v: int, axis: str) -> float | None:
     return float(math.atan2(d[2], d @ (fwd / n)))
 
 
-def _pick_pixels(frame: Frame, pix: np.ndarray, rng: np.random.Generator, n: int,
-                 used: set) -> list[tuple[tuple[float, float], tuple[int, int]]]:
-    out = []
-    for _ in range(8 * n):
-        if len(out) >= n or len(pix) == 0:
-            break
-        s = _snap(frame, pix[int(rng.integers(len(pix)))])
-        if s is None or s[1] in used:
-            continue
-        out.append(s)
-    return out
+class _Pool:
+    """Reliable pixels split by image quadrant; each pick comes from the least-used quadrant (spread answers)."""
+
+    def __init__(self, frame: Frame, pix: np.ndarray) -> None:
+        self.frame = frame
+        W, H = frame.camera.width, frame.camera.height
+        q = (2 * pix[:, 0] >= W).astype(int) + 2 * (2 * pix[:, 1] >= H).astype(int)
+        self.parts = [pix[q == k] for k in range(4)]
+        self.counts = [0, 0, 0, 0]
+        self.used: set = set()
+
+    def pick(self, rng: np.random.Generator, n: int) -> list[tuple[tuple[float, float], tuple[int, int]]]:
+        out: list = []
+        for _ in range(8 * n):
+            if len(out) >= n:
+                break
+            live = [k for k in range(4) if len(self.parts[k])]
+            if not live:
+                break
+            low = min(self.counts[k] for k in live)
+            ks = [k for k in live if self.counts[k] == low and all(k != o[2] for o in out)] or \
+                [k for k in live if all(k != o[2] for o in out)] or live
+            k = ks[int(rng.integers(len(ks)))]
+            s = _snap(self.frame, self.parts[k][int(rng.integers(len(self.parts[k])))])
+            if s is None or s[1] in self.used or any(s[1] == o[1] for o in out):
+                continue
+            out.append((s[0], s[1], k))
+        return [(p, uv) for p, uv, _ in out]
+
+    def take(self, p: tuple[float, float], uv: tuple[int, int]) -> None:
+        W, H = self.frame.camera.width, self.frame.camera.height
+        self.used.add(uv)
+        self.counts[int(2 * uv[0] >= W) + 2 * int(2 * uv[1] >= H)] += 1
 
 
 def point_depth_qa(frames: list[Frame], rng: np.random.Generator, n: int, start: int = 0,
@@ -109,39 +131,38 @@ def point_depth_qa(frames: list[Frame], rng: np.random.Generator, n: int, start:
     pix = valid_pixels(frame)
     if len(pix) < 2:
         return out
-    used: set = set()
+    pool = _Pool(frame, pix)
     order = [kinds[int(k)] for k in rng.permutation(len(kinds))]
     for attempt in range(4 * n):
         if len(out) >= n:
             break
         kind = order[attempt % len(order)]
         qa_id = f"{frames[0].frame_id}:{start + len(out):02d}"
-        qa = _make(frame, kind, pix, rng, used, qa_id)
+        qa = _make(frame, kind, pool, rng, qa_id)
         if qa is not None:
             out.append(qa)
     return out
 
 
-def _make(frame: Frame, kind: str, pix: np.ndarray, rng: np.random.Generator, used: set,
-          qa_id: str) -> QAPair | None:
+def _make(frame: Frame, kind: str, pool: _Pool, rng: np.random.Generator, qa_id: str) -> QAPair | None:
     d = frame.depth
     size = (frame.camera.width, frame.camera.height)
     base: dict[str, Any] = dict(qa_id=qa_id, family=FAMILY, steps=1, frame_ids=[frame.frame_id], image_size=size,
                                 checks=["smooth_depth", "outside_margin"])
     if kind == "depth":
-        got = _pick_pixels(frame, pix, rng, 1, used)
+        got = pool.pick(rng, 1)
         if not got:
             return None
         p, (u, v) = got[0]
         z = float(d[v, u])
-        used.add((u, v))
+        pool.take(p, (u, v))
         q = DEPTH_TEXTS[int(rng.integers(len(DEPTH_TEXTS)))].format(p=fmt_points([p]))
         struct = {"kind": "number", "value": round(z, 6), "unit": "m", "quantity": "depth",
                   "query_points": [list(p)]}
         return QAPair(template=f"{FAMILY}/depth", question=q, answer=fmt_length(z), answer_struct=struct,
                       relations=["depth"], **base)
     if kind == "choice":
-        got = _pick_pixels(frame, pix, rng, 2, used)
+        got = pool.pick(rng, 2)
         if len(got) < 2:
             return None
         (pa, (ua, va)), (pb, (ub, vb)) = got
@@ -150,7 +171,8 @@ def _make(frame: Frame, kind: str, pix: np.ndarray, rng: np.random.Generator, us
             return None
         rel = "front" if rng.integers(2) == 0 else "behind"
         correct = int(np.argmin([za, zb]) if rel == "front" else np.argmax([za, zb]))
-        used.update({(ua, va), (ub, vb)})
+        pool.take(pa, (ua, va))
+        pool.take(pb, (ub, vb))
         texts = [fmt_points([pa]), fmt_points([pb])]
         q = CHOICE_TEXTS[rel][int(rng.integers(len(CHOICE_TEXTS[rel])))].format(
             a=f"({LETTERS[0]}) {texts[0]}", b=f"({LETTERS[1]}) {texts[1]}")
@@ -161,7 +183,7 @@ def _make(frame: Frame, kind: str, pix: np.ndarray, rng: np.random.Generator, us
                       relations=["depth", rel], **base)
     axis = kind.split("_")[1]
     for _ in range(6):
-        got = _pick_pixels(frame, pix, rng, 1, used)
+        got = pool.pick(rng, 1)
         if not got:
             return None
         p, (u, v) = got[0]
@@ -170,7 +192,7 @@ def _make(frame: Frame, kind: str, pix: np.ndarray, rng: np.random.Generator, us
             return None
         if abs(a) < MIN_TURN:
             continue
-        used.add((u, v))
+        pool.take(p, (u, v))
         q = TURN_TEXTS[axis][int(rng.integers(len(TURN_TEXTS[axis])))].format(p=fmt_points([p]))
         struct = {"kind": "number", "value": round(a, 6), "unit": "rad", "quantity": kind,
                   "query_points": [list(p)]}
