@@ -202,11 +202,10 @@ class SceneGeom:
         t = (np.arange(6) + 0.5) / 6
         u, v = np.meshgrid(t, t, indexing="ij")
         u, v = u.ravel(), v.ravel()
-        out = np.zeros((n, n))
-        for i in range(n):
-            f = self.footprints[i]
-            pts = f[0] + u[:, None] * (f[1] - f[0]) + v[:, None] * (f[3] - f[0])
-            out[i] = points_in_polygons(pts, self.footprints).mean(axis=1)
+        f = self.footprints
+        pts = f[:, None, 0] + u[None, :, None] * (f[:, None, 1] - f[:, None, 0]) + v[None, :, None] * (f[:, None, 3] - f[:, None, 0])
+        inside = points_in_polygons(pts.reshape(-1, 2), f).reshape(n, n, len(u))  # (polygon j, object i, sample)
+        out = inside.mean(axis=2).T.copy()
         np.fill_diagonal(out, 0.0)
         return out
 

@@ -60,12 +60,10 @@ def find_supports(geom: SceneGeom) -> list[Support | None]:
                 gap = bottom - stops[k]
                 if abs(gap) <= th.support_gap and share[k] >= th.support_overlap:
                     cands.append((abs(gap), 1, Support("surface", s.id, float(gap), float(share[k]))))
-        for j in range(geom.n):
-            if j == i:
-                continue
+        near = (np.abs(bottom - geom.hi[:, 2]) <= th.support_gap) & (geom.hi[:, 2] < geom.hi[i, 2])
+        near[i] = False
+        for j in np.flatnonzero(near):  # tops within the gap, below i's top
             gap = bottom - geom.hi[j, 2]
-            if abs(gap) > th.support_gap or geom.hi[j, 2] >= geom.hi[i, 2]:
-                continue
             # share of the smaller footprint that the two have in common
             common = ov[i, j] if area[i] <= area[j] else ov[j, i]
             if common >= th.support_overlap and geom.centers[i, 2] > geom.centers[j, 2]:
