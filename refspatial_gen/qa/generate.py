@@ -9,8 +9,9 @@ letters shuffled, answer points spread over image quadrants by rejection).
 
 from __future__ import annotations
 
+from collections import OrderedDict
+
 import math
-import weakref
 from typing import Any
 
 import numpy as np
@@ -27,7 +28,30 @@ from refspatial_gen.qa.templates import Ref, Template
 from refspatial_gen.qa.text import Seq, parse, render
 
 CHECKS = ("unique_references", "nondegenerate", "outside_margin", "balanced")
-_INDEX_CACHE: "weakref.WeakKeyDictionary[SceneGraph, SceneIndex]" = weakref.WeakKeyDictionary()
+class _IndexCache:
+    """The few most recent graph -> SceneIndex entries. Bounded on purpose: a WeakKeyDictionary never freed
+    anything here, because each index refers to its own graph (memory grew ~6 MB per scene in a worker)."""
+
+    def __init__(self, size: int = 8) -> None:
+        self._d: "OrderedDict[int, tuple[SceneGraph, SceneIndex]]" = OrderedDict()
+        self.size = size
+
+    def get(self, graph: SceneGraph) -> "SceneIndex | None":
+        e = self._d.get(id(graph))
+        return e[1] if e is not None and e[0] is graph else None
+
+    def __setitem__(self, graph: SceneGraph, idx: "SceneIndex") -> None:
+        self._d[id(graph)] = (graph, idx)
+        self._d.move_to_end(id(graph))
+        while len(self._d) > self.size:
+            self._d.popitem(last=False)
+
+    def pop(self, graph: SceneGraph, default=None):
+        e = self._d.pop(id(graph), None)
+        return default if e is None or e[0] is not graph else e[1]
+
+
+_INDEX_CACHE = _IndexCache()
 _PARSED: dict[str, Seq] = {}
 
 
