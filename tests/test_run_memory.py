@@ -1,0 +1,26 @@
+"""Nothing proportional to the number of samples stays alive in a worker (regression: a leaking QA index cache)."""
+
+import gc
+import weakref
+
+import numpy as np
+
+from refspatial_gen.graph import build_graph
+from refspatial_gen.qa.generate import _INDEX_CACHE, generate_qa
+from refspatial_gen.recipe import load_recipe
+from refspatial_gen.sources.toy import toy_frame
+from tests.helpers.runs import write_toy_recipe
+
+
+def test_graphs_and_frames_are_freed_after_their_sample(tmp_path):
+    recipe = load_recipe(write_toy_recipe(tmp_path))
+    refs = []
+    for i in range(20):
+        f = toy_frame(np.random.default_rng(i), 5, 160, 120, frame_id=f"toy:{i}")
+        g = build_graph(f, recipe.graph)
+        generate_qa([f], [g], np.random.default_rng(i), recipe.qa)
+        refs.append((weakref.ref(f), weakref.ref(g)))
+        del f, g
+    gc.collect()
+    alive = sum(1 for rf, rg in refs if rf() is not None or rg() is not None)
+    assert alive <= _INDEX_CACHE.size, f"{alive} of 20 samples still referenced"
