@@ -97,7 +97,7 @@ def bench_stream(shard_dir: Path, work: Path) -> dict[str, Any]:
 
 
 def bench_scaling(scenes: int, work: Path) -> dict[str, Any]:
-    """Executor scaling 1 -> 2 workers, and per-worker peak memory for `scenes` vs 10x `scenes` (toy source)."""
+    """Executor scaling 1 -> 2 workers, and per-worker peak memory for `scenes` vs 10x `scenes` (default recipe)."""
     from refspatial_gen.recipe import load_recipe
     from refspatial_gen.run.executor import RecipeRef, run_plan
 
@@ -128,7 +128,7 @@ def bench_scaling(scenes: int, work: Path) -> dict[str, Any]:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m refspatial_gen.bench", description=__doc__)
     ap.add_argument("--scenes", type=int, default=24, help="scenes for the simulated pipeline")
-    ap.add_argument("--scale-scenes", type=int, default=8, help="scenes for the scaling run (memory uses 10x)")
+    ap.add_argument("--scale-scenes", type=int, default=16, help="scenes for the scaling run (memory uses 10x)")
     ap.add_argument("--only", nargs="*", default=None, choices=["sim", "qa", "image", "stream", "scale"])
     ap.add_argument("--json", default=None, help="also write the figures to this file")
     args = ap.parse_args(argv)
