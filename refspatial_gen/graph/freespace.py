@@ -101,7 +101,7 @@ def check_free_point(frame: Frame, graph: SceneGraph, region: FreeSpaceRegion,
         problems.append(f"unknown surface {region.surface_id!r}")
     elif not points_in_polygons(hit[None, :2], surface_outline[None])[0, 0]:
         problems.append(f"point ({hit[0]:.3f}, {hit[1]:.3f}) is off surface {region.surface_id}")
-    if not shapely.contains_xy(Polygon(region.polygon_xy), hit[0], hit[1]):
+    if not shapely.contains_xy(shapely.polygons(np.asarray(region.polygon_xy, float)), hit[0], hit[1]):
         problems.append("point is outside the region polygon")
     fps = obstacle_footprints(frame, G, region.z, gap) if obstacles is None else obstacles
     if len(fps) and points_in_polygons(hit[None, :2], np.asarray(fps, float)).any():
@@ -150,7 +150,7 @@ def _wedge(apex: np.ndarray, direction: np.ndarray, radius: float, k: int = 9) -
     ang = np.arctan2(direction[1], direction[0])
     a = ang + np.linspace(-np.pi / 4, np.pi / 4, k)
     arc = apex + radius * np.stack([np.cos(a), np.sin(a)], axis=1)
-    return Polygon(np.vstack([apex, arc]))
+    return shapely.polygons(np.vstack([apex, arc]))
 
 
 def _sample_area_bound(poly: Polygon, min_step: float) -> float:
@@ -163,7 +163,7 @@ def _sample_area_bound(poly: Polygon, min_step: float) -> float:
     """
     step = max(min_step, float(np.sqrt(poly.area / MAX_SAMPLES)))
     r = step / np.sqrt(2.0)
-    nv = len(poly.exterior.coords) + sum(len(h.coords) for h in poly.interiors)
+    nv = int(shapely.get_num_coordinates(poly))
     return poly.area + poly.length * r + nv * np.pi * r * r
 
 
@@ -258,7 +258,7 @@ def _build(geom: SceneGeom) -> list[FreeSpaceRegion]:
             continue
         obst_fp = _obstacles(geom, z, th.support_gap)
         outline = surface_polygon(s.box)
-        obst = [Polygon(fp).buffer(th.free_clearance, join_style="mitre") for fp in obst_fp]
+        obst = list(shapely.buffer(shapely.polygons(np.asarray(obst_fp, float)), th.free_clearance, join_style="mitre")) if obst_fp else []
         free = surf.intersection(view)
         if obst:
             free = free.difference(unary_union(obst))
@@ -302,7 +302,7 @@ def _build(geom: SceneGeom) -> list[FreeSpaceRegion]:
             e2 = spoly[(k - 1) % 4] - p
             e1 = e1 / np.linalg.norm(e1) * min(th.corner_size, np.linalg.norm(e1) / 2)
             e2 = e2 / np.linalg.norm(e2) * min(th.corner_size, np.linalg.norm(e2) / 2)
-            sq = Polygon([p, p + e1, p + e1 + e2, p + e2])
+            sq = shapely.polygons(np.array([p, p + e1, p + e1 + e2, p + e2]))
             poly = _largest(free.intersection(sq))
             if poly is not None:
                 r = _region(geom, stub, s.id, "corner", (), poly, z, f"{name} corner", obst_fp, outline)
@@ -312,7 +312,7 @@ def _build(geom: SceneGeom) -> list[FreeSpaceRegion]:
             e = (b - a) / np.linalg.norm(b - a)
             inward = np.array([-e[1], e[0]])
             w = min(th.edge_width, float(np.linalg.norm(b - a)) / 2)
-            band = Polygon([a, b, b + inward * w, a + inward * w])
+            band = shapely.polygons(np.array([a, b, b + inward * w, a + inward * w]))
             poly = _largest(free.intersection(band))
             if poly is not None:
                 r = _region(geom, stub, s.id, "edge", (), poly, z, name, obst_fp, outline)
