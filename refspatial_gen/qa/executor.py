@@ -168,8 +168,7 @@ def run_step(st: Step, env: dict[str, Any], prev: Any, ctx: Context) -> Any:
     if op == "between":
         s = _set_in(st, env, prev, idx)
         b, c = resolve(a["anchors"], env, prev, idx)
-        out = frozenset(x for x in s if x != b and x != c and idx.holds("between", (x, b, c)))
-        return _bounded(st, s, out, ctx)
+        return _bounded(st, s, idx.between(b, c, s), ctx)
     if op == "superlative":
         s = _set_in(st, env, prev, idx)
         rel = resolve(a["relation"], env, prev, idx)
@@ -339,6 +338,9 @@ class Search:
         self.rejects: dict[str, int] = {}
         self._cands: dict[str, list] = {}
         self._objslots = {n for n, s in t.slots.items() if s.type in ("object", "anchor")}
+        # per step, computed once: the slots it binds, which of them are objects, how often it is retried
+        self._plan = [(st, st.binds, [k for k, nm in enumerate(st.binds) if nm in self._objslots],
+                       3 if st.op == "mark" else 1) for st in t.steps]
 
     def candidates(self, name: str) -> list:
         c = self._cands.get(name)
@@ -355,15 +357,12 @@ class Search:
         yield from self._rec(0, env, None, set())
 
     def _rec(self, i: int, env: dict[str, Any], prev: Any, used: set):
-        t = self.t
-        if i == len(t.steps):
+        if i == len(self._plan):
             yield env
             return
-        st = t.steps[i]
-        names = st.binds
-        objs = [k for k, nm in enumerate(names) if nm in self._objslots]
+        st, names, objs, tries = self._plan[i]
         combos = product(*[self.candidates(nm) for nm in names]) if names else ((),)
-        tries = 3 if st.op == "mark" else 1
+        ctx, rejects = self.ctx, self.rejects
         for combo in combos:
             if self.budget <= 0:
                 return
@@ -379,9 +378,9 @@ class Search:
             self.budget -= 1
             for _ in range(tries):
                 try:
-                    val = run_step(st, env, prev, self.ctx)
+                    val = run_step(st, env, prev, ctx)
                 except Reject as r:
-                    self.rejects[r.reason] = self.rejects.get(r.reason, 0) + 1
+                    rejects[r.reason] = rejects.get(r.reason, 0) + 1
                     continue
                 env[st.name] = val
                 yield from self._rec(i + 1, env, val, used2)

@@ -25,6 +25,7 @@ _PAIR_OF = {"left": ("left", False), "right": ("left", True), "front": ("front",
             "above_image": ("above_image", False), "below_image": ("above_image", True),
             "above_world": ("above_world", False), "below_world": ("above_world", True)}
 _PAIR_BASES = frozenset(v[0] for v in _PAIR_OF.values())
+_MISS = object()  # fact-cache sentinel (None is a cached "not evaluated")
 
 
 class Reject(Exception):
@@ -77,6 +78,7 @@ class SceneIndex:
         self._derived: dict[str, dict | None] = {}
         self._pairs: dict[tuple, Fact] | None = None
         self._runs: dict[int, np.ndarray] = {}
+        self._sizes: dict[int, tuple[float, float, float]] = {}
         self.by_category: dict[str, frozenset[int]] = {
             c: frozenset(i for i in self.ids if self.category[i] == c) for c in self.categories}
         self.by_color: dict[str, frozenset[int]] = {
@@ -87,10 +89,10 @@ class SceneIndex:
     def _derived_matrix(self, base: str) -> dict[tuple, Fact] | None:
         """All pairs of a size comparison at once, with the graph's own decision function on the stored
         node attributes (exactly what GraphIndex derives one pair at a time; a test pins the equality)."""
-        from refspatial_gen.graph.relations.common import holds_of
-        from refspatial_gen.graph.relations.sizes import DERIVED, compare
-
         if base not in self._derived:
+            from refspatial_gen.graph.relations.common import holds_of
+            from refspatial_gen.graph.relations.sizes import DERIVED, compare
+
             th, ids = self.gindex.th, self.ids
             out = None
             if th is not None and self.gindex.world and ids:
@@ -116,8 +118,9 @@ class SceneIndex:
 
     def fact(self, relation: str, args: tuple) -> Fact | None:
         key = (relation, args)
-        if key in self._fact_cache:
-            return self._fact_cache[key]
+        f = self._fact_cache.get(key, _MISS)
+        if f is not _MISS:
+            return f
         pair = _PAIR_OF.get(relation)
         if pair is not None and (pair[0] != "above_world" or self.gindex.world):
             if self._pairs is None:
@@ -143,11 +146,42 @@ class SceneIndex:
         self._fact_cache[key] = out
         return out
 
+    def between(self, b: int, c: int, s: frozenset) -> frozenset:
+        """Objects x of `s` (b and c excluded) with between(x, b, c) true; Reject("margin") when one of them is
+        undecided, Reject("no_fact") when one was not evaluated. The whole row for the anchor pair is looked
+        up once and kept (the executor's `between` op asks it for many sets)."""
+        key = ("between", b, c)
+        entry = self._rel_sets.get(key)
+        if entry is None:
+            true, undecided, missing = set(), set(), set()
+            for x in self.ids:
+                if x == b or x == c:
+                    continue
+                f = self.fact("between", (x, b, c))
+                if f is None:
+                    missing.add(x)
+                elif f.holds is None:
+                    undecided.add(x)
+                elif f.holds:
+                    true.add(x)
+            entry = (frozenset(true), frozenset(undecided), frozenset(missing))
+            self._rel_sets[key] = entry
+        true, undecided, missing = entry
+        if (undecided and not undecided.isdisjoint(s)) or (missing and not missing.isdisjoint(s)):
+            for x in s:  # the first bad member in the set's order names the reason, as a member-wise loop would
+                if x != b and x != c:
+                    self.holds("between", (x, b, c))
+        return s & true
+
     def _between_ok(self, args: tuple) -> bool:
         """The cases where GraphIndex.fact("between", ...) reaches its table (three distinct known objects,
         gravity known); anything else takes the general path and its None."""
-        return (self.gindex.world and len(args) == 3 and len(set(args)) == 3
-                and all(isinstance(x, (int, np.integer)) and int(x) in self.nodes for x in args))
+        if len(args) != 3 or not self.gindex.world:
+            return False
+        a, b, c = args
+        nodes = self.nodes
+        return (a != b and a != c and b != c and type(a) is int and type(b) is int and type(c) is int
+                and a in nodes and b in nodes and c in nodes)
 
     def holds(self, relation: str, args: tuple) -> bool:
         """True/False; raises Reject("margin") when undecided and Reject("no_fact") when not evaluated."""
@@ -215,10 +249,13 @@ class SceneIndex:
 
     def size(self, object_id: int) -> tuple[float, float, float]:
         """(larger horizontal extent, smaller horizontal extent, height) in metres, from the 3D box."""
-        b = self.objects[object_id].box
-        fp = b.footprint()
-        s = np.linalg.norm(np.roll(fp, -1, axis=0) - fp, axis=1)
-        return float(max(s[0], s[1])), float(min(s[0], s[1])), float(b.height)
+        out = self._sizes.get(object_id)
+        if out is None:
+            b = self.objects[object_id].box
+            fp = b.footprint()
+            s = np.linalg.norm(np.roll(fp, -1, axis=0) - fp, axis=1)
+            out = self._sizes[object_id] = (float(max(s[0], s[1])), float(min(s[0], s[1])), float(b.height))
+        return out
 
     def front_cam(self, object_id: int) -> tuple[float, float, float]:
         """The object's semantic front as a unit vector in camera coordinates."""
