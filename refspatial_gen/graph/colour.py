@@ -79,3 +79,17 @@ def mask_hsv(hsv: np.ndarray, mask: np.ndarray) -> np.ndarray:
     inner = cv2.erode(mask.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     m = inner if inner.sum() >= MIN_PIXELS else mask
     return hsv[m]
+
+
+def mask_hsv_from_rgb(rgb: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """`mask_hsv(hsv_image(rgb), mask)` thinned as `colour_shares` thins it, converting only the pixels
+    kept. Why: the HSV conversion is per pixel, so converting the few thousand pixels used instead of the
+    whole image gives the same shares for a fraction of the work."""
+    import cv2
+
+    pix = mask_hsv(rgb, mask)
+    if len(pix) > MAX_PIXELS:
+        pix = pix[:: int(np.ceil(len(pix) / MAX_PIXELS))]
+    if not len(pix):
+        return np.zeros((0, 3), np.uint8)
+    return cv2.cvtColor(np.ascontiguousarray(pix[None]), cv2.COLOR_RGB2HSV)[0]

@@ -17,7 +17,7 @@ import numpy as np
 from refspatial_gen.core.geometry import Box3D, box_distance
 from refspatial_gen.core.mask import answer_pixel, denormalise_point, normalise_point
 from refspatial_gen.core.model import Frame, SupportSurface
-from refspatial_gen.graph.colour import colour_word, hsv_image, mask_hsv
+from refspatial_gen.graph.colour import colour_word, mask_hsv_from_rgb
 from refspatial_gen.graph.constants import Thresholds
 from refspatial_gen.graph.gravity import Gravity
 
@@ -142,7 +142,7 @@ class SceneGeom:
     # ---------------------------------------------------------------- masks, points, colours
     def _masks(self) -> None:
         n, W, H = self.n, self.W, self.H
-        hsv = hsv_image(self.frame.rgb) if n else None
+        rgb = self.frame.rgb
         self.mask_area = np.zeros(n, dtype=np.int64)
         self.img_centroid = np.full((n, 2), np.nan)  # normalised
         self.points: list[tuple[float, float] | None] = [None] * n
@@ -162,7 +162,7 @@ class SceneGeom:
             self.mask_area[i] = len(xs)
             self.img_centroid[i] = ((xs.mean() + x0 + 0.5) / W, (ys.mean() + y0 + 0.5) / H)
             self.points[i] = valid_point(m, x0, y0, W, H)
-            self.colours[i], self.colour_how[i] = colour_word(mask_hsv(hsv[y0:y1, x0:x1], m), o.attributes.get("color"))
+            self.colours[i], self.colour_how[i] = colour_word(mask_hsv_from_rgb(rgb[y0:y1, x0:x1], m), o.attributes.get("color"))
             ys, xs = ys + y0, xs + x0
             d = depth[ys, xs]
             d = d[d > 0]
