@@ -51,11 +51,16 @@ def find_supports(geom: SceneGeom) -> list[Support | None]:
     ov = geom.footprint_overlap  # (i, j): share of i over j
     area = geom.footprint_area
     out: list[Support | None] = []
+    shares = np.zeros((geom.n, len(surfs)))
+    if len(surfs) and geom.n:  # share of each object's footprint grid over each surface, in one call
+        grids = np.stack([_grid_in(fp) for fp in geom.footprints])  # (n, 36, 2)
+        inside = points_in_polygons(grids.reshape(-1, 2), spolys).reshape(len(surfs), geom.n, grids.shape[1])
+        shares = inside.mean(axis=2).T
     for i in range(geom.n):
         cands = []
         bottom = geom.lo[i, 2]
         if len(surfs):
-            share = points_in_polygons(_grid_in(geom.footprints[i]), spolys).mean(axis=1)
+            share = shares[i]
             for k, s in enumerate(surfs):
                 gap = bottom - stops[k]
                 if abs(gap) <= th.support_gap and share[k] >= th.support_overlap:
