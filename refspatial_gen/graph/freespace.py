@@ -42,9 +42,12 @@ def gravity_rotation(graph_or_geom) -> np.ndarray:
 def pixel_to_plane(frame: Frame, G: np.ndarray, px: float, py: float, z: float) -> np.ndarray | None:
     """Gravity-world point where the ray through pixel centre (px, py) meets the plane at height z."""
     cam = frame.camera
+    return _ray_to_plane(cam, G @ cam.world_from_cam[:3, :3], G @ cam.world_from_cam[:3, 3], px, py, z)
+
+
+def _ray_to_plane(cam, R: np.ndarray, o: np.ndarray, px: float, py: float, z: float) -> np.ndarray | None:
+    """`pixel_to_plane` with the camera pose in the gravity world (R, o) computed once by the caller."""
     d_cam = np.array([(px + 0.5 - cam.cx) / cam.fx, (py + 0.5 - cam.cy) / cam.fy, 1.0])
-    R = G @ cam.world_from_cam[:3, :3]
-    o = G @ cam.world_from_cam[:3, 3]
     d = R @ d_cam
     if abs(d[2]) < 1e-12:
         return None
@@ -128,7 +131,9 @@ def _view_polygon(geom: SceneGeom, z: float) -> Polygon | None:
     border = ([(x, 0) for x in np.linspace(0, W - 1, k)] + [(W - 1, y) for y in np.linspace(0, H - 1, k)]
               + [(x, H - 1) for x in np.linspace(W - 1, 0, k)] + [(0, y) for y in np.linspace(H - 1, 0, k)])
     # per-pixel pixel_to_plane (not a batched matmul) keeps the hull bit-identical to the checker's rays
-    pts = [pixel_to_plane(geom.frame, geom.gravity.rotation, x, y, z) for x, y in border]
+    cam, G = geom.frame.camera, geom.gravity.rotation
+    R, o = G @ cam.world_from_cam[:3, :3], G @ cam.world_from_cam[:3, 3]
+    pts = [_ray_to_plane(cam, R, o, x, y, z) for x, y in border]
     pts = [p[:2] for p in pts if p is not None and np.linalg.norm(p - geom.cam_pos_g) < 50.0]
     if len(pts) < 3:
         return None
