@@ -153,8 +153,10 @@ def run_step(st: Step, env: dict[str, Any], prev: Any, ctx: Context) -> Any:
         return s
     if op == "relate":
         s = _set_in(st, env, prev, idx)
-        rel = resolve(a["relation"], env, prev, idx)
-        anchor = resolve(a["anchor"], env, prev, idx)
+        r, r2 = a["relation"], a["anchor"]
+        # slot/step references inline (the hottest op; resolve() gives the same values)
+        rel = env[r.value] if r.kind == "slot" or r.kind == "step" else resolve(r, env, prev, idx)
+        anchor = env[r2.value] if r2.kind == "slot" or r2.kind == "step" else resolve(r2, env, prev, idx)
         out = idx.narrow(rel, anchor, s)
         return _bounded(st, s, out, ctx)
     if op == "at":

@@ -168,7 +168,11 @@ def _pick(weights: list[float], rng: np.random.Generator) -> int:
 
 
 def _is_multiview(t: Template) -> bool:
-    return any(s.op == "camera_turn" for s in t.steps)
+    """Does the template need a second view (asked every attempt: computed once per compiled template)."""
+    v = t.__dict__.get("_multiview")
+    if v is None:
+        v = t.__dict__["_multiview"] = any(s.op == "camera_turn" for s in t.steps)
+    return v
 
 
 def _instantiate(t: Template, ctx: Context, rng: np.random.Generator, config: QAConfig, bal: Balancer,

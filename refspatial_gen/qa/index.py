@@ -99,7 +99,9 @@ class SceneIndex:
                 attr, abs_name, rel_name = DERIVED[base]
                 q = np.array([self.nodes[i].attributes[attr] for i in ids], float)
                 v, codes, m = compare(q, getattr(th, abs_name) if abs_name else 0.0, getattr(th, rel_name))
-                out = {(a, b): Fact(holds_of(int(codes[i, j])), float(v[i, j]))
+                hs = [[holds_of(c) for c in row] for row in np.asarray(codes).astype(int).tolist()]
+                vs = np.asarray(v, dtype=float).tolist()  # python floats: same values, no per-element numpy
+                out = {(a, b): Fact(hs[i][j], vs[i][j])
                        for i, a in enumerate(ids) for j, b in enumerate(ids) if i != j}
             self._derived[base] = out
         return self._derived[base]
@@ -205,10 +207,13 @@ class SceneIndex:
         entry = self._rel_sets.get(key)
         if entry is None:
             true, undecided, missing = set(), set(), set()
+            cache, fact = self._fact_cache, self.fact
             for x in self.ids:
                 if x == anchor:
                     continue
-                f = self.fact(relation, (x, anchor))
+                f = cache.get((relation, (x, anchor)), _MISS)
+                if f is _MISS:
+                    f = fact(relation, (x, anchor))
                 if f is None:
                     missing.add(x)
                 elif f.holds is None:
