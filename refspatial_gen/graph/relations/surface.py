@@ -12,7 +12,7 @@ import numpy as np
 from refspatial_gen.core.model import RelationFact
 from refspatial_gen.graph.scene import roll_next
 from refspatial_gen.graph.relations.base import SURFACE_SOURCES, Relation, register
-from refspatial_gen.graph.relations.common import TRUE, UNDECIDED, band_matrix, cached, pos
+from refspatial_gen.graph.relations.common import FALSE, TRUE, UNDECIDED, cached, pos
 from refspatial_gen.graph.support import get_supports, surface_polygon
 
 EDGE_AXIS_TOLERANCE = np.deg2rad(30.0)  # an edge's outward normal within this of a viewer axis gets a name
@@ -50,14 +50,20 @@ def surface_labels(geom) -> dict[str, dict]:
     return cached(geom, "surface:labels", f)
 
 
-def _footprint_to_point(fp: np.ndarray, p: np.ndarray) -> float:
-    """Distance from a point to a convex footprint (0 inside)."""
+def _footprint_to_points(fp: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """Distances from (C, 2) points to a convex footprint (0 inside)."""
     a, b = fp, roll_next(fp, axis=0)
     e = b - a
-    t = np.clip(np.sum((p - a) * e, axis=1) / np.maximum(np.sum(e * e, axis=1), 1e-18), 0, 1)
-    d = np.linalg.norm(p - (a + t[:, None] * e), axis=1).min()
-    inside = np.all(e[:, 0] * (p[1] - a[:, 1]) - e[:, 1] * (p[0] - a[:, 0]) >= 0)
-    return 0.0 if inside else float(d)
+    rel = pts[:, None, :] - a[None]  # (C, 4, 2)
+    t = np.clip(np.sum(rel * e, axis=2) / np.maximum(np.sum(e * e, axis=1), 1e-18), 0, 1)
+    d = np.linalg.norm(pts[:, None, :] - (a + t[..., None] * e), axis=2).min(axis=1)
+    inside = np.all(e[:, 0] * (pts[:, None, 1] - a[:, 1]) - e[:, 1] * (pts[:, None, 0] - a[:, 0]) >= 0, axis=1)
+    return np.where(inside, 0.0, d)
+
+
+def _band(v: float, low: float, high: float) -> int:
+    """`band_matrix` for one value."""
+    return FALSE if v > high else (TRUE if v < low else UNDECIDED)
 
 
 def _footprint_to_edge(fp: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
@@ -80,14 +86,15 @@ def _corner_edge(geom):
             if sid is None or sid not in labels:
                 continue
             fp = g.footprints[i]
-            for lab, p in sorted(labels[sid]["corners"].items()):
-                v = _footprint_to_point(fp, p)
-                code = int(band_matrix(np.array(v), th.corner_reach, th.corner_reach + th.surface_band_margin))
-                out[("corner", i, sid, lab)] = (code, v)
+            corners = sorted(labels[sid]["corners"].items())
+            if corners:
+                vs = _footprint_to_points(fp, np.array([p for _, p in corners]))
+                for (lab, _), v in zip(corners, vs):
+                    v = float(v)
+                    out[("corner", i, sid, lab)] = (_band(v, th.corner_reach, th.corner_reach + th.surface_band_margin), v)
             for lab, (a, b) in sorted(labels[sid]["edges"].items()):
                 v = _footprint_to_edge(fp, a, b)
-                code = int(band_matrix(np.array(v), th.edge_band, th.edge_band + th.surface_band_margin))
-                out[("edge", i, sid, lab)] = (code, v)
+                out[("edge", i, sid, lab)] = (_band(v, th.edge_band, th.edge_band + th.surface_band_margin), v)
         return out
     return cached(geom, "surface:corner_edge", f)
 
