@@ -42,6 +42,7 @@ class GraphIndex:
         self._between: dict | None = None
         self._dist: np.ndarray | None = None
         self._pos: dict[int, int] = {x: k for k, x in enumerate(self.ids)}  # id -> row of the derived tables
+        self._between_rows: dict | None = None
 
     # ------------------------------------------------------------------ nodes
     def node(self, object_id: int) -> Node:
@@ -197,19 +198,39 @@ class GraphIndex:
             self._dist = d
         return self._dist
 
+    def between_rows(self) -> dict[tuple[int, int], tuple[frozenset, frozenset]]:
+        """{(b, c) ids with b < c: (ids A with between(A, b, c) true, ids undecided)}; every other A is False.
+        The same table and rule as between_code, grouped per anchor pair for set-at-once lookups."""
+        if self._between_rows is None:
+            rows: dict[tuple[int, int], tuple[set, set]] = {}
+            ids = self.ids
+            for (i, j, k), (code, _t) in self._between_table().items():
+                h = holds_of(code)
+                if h is False:
+                    continue
+                row = rows.setdefault((ids[j], ids[k]), (set(), set()))
+                row[0 if h else 1].add(ids[i])
+            self._between_rows = {key: (frozenset(t), frozenset(u)) for key, (t, u) in rows.items()}
+        return self._between_rows
+
     def between_code(self, a: int, b: int, c: int) -> tuple[bool | None, float]:
         """(holds, t) of between(a, b, c) for three distinct known ids, without building a RelationFact
         (the QA index's hot path; same table and rule as _between_fact)."""
-        if self._between is None:
-            xy = np.array([self.nodes[i].attributes["center"][:2] for i in self.ids], float).reshape(-1, 2)
-            cats = [self.nodes[i].category for i in self.ids]
-            self._between = between_table(xy, np.array(self.ids), cats, self._distance_matrix(), self.th)
+        table = self._between_table()
         pos = self._pos
         i, j, k = pos[int(a)], pos[int(b)], pos[int(c)]
         if j > k:
             j, k = k, j
-        code, t = self._between.get((i, j, k), (0, 0.0))
+        code, t = table.get((i, j, k), (0, 0.0))
         return holds_of(code), t
+
+    def _between_table(self) -> dict:
+        """between_table over the stored node centres and distances, built once (positions in self.ids)."""
+        if self._between is None:
+            xy = np.array([self.nodes[i].attributes["center"][:2] for i in self.ids], float).reshape(-1, 2)
+            cats = [self.nodes[i].category for i in self.ids]
+            self._between = between_table(xy, np.array(self.ids), cats, self._distance_matrix(), self.th)
+        return self._between
 
     def _between_fact(self, a, b, c) -> RelationFact | None:
         h, t = self.between_code(a, b, c)

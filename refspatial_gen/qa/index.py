@@ -154,6 +154,13 @@ class SceneIndex:
         up once and kept (the executor's `between` op asks it for many sets)."""
         key = ("between", b, c)
         entry = self._rel_sets.get(key)
+        if entry is None and self.gindex.world and b != c and type(b) is int and type(c) is int \
+                and b in self.nodes and c in self.nodes:
+            # whole row from the graph index's grouped table: a fact for every other object, absent = False
+            rows = self.gindex.between_rows()
+            t, u = rows.get((b, c) if b < c else (c, b), (frozenset(), frozenset()))
+            entry = (t, u, frozenset())
+            self._rel_sets[key] = entry
         if entry is None:
             true, undecided, missing = set(), set(), set()
             for x in self.ids:
