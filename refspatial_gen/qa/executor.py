@@ -365,6 +365,7 @@ class Search:
         st, names, objs, tries = self._plan[i]
         combos = product(*[self.candidates(nm) for nm in names]) if names else ((),)
         ctx, rejects = self.ctx, self.rejects
+        last = i + 1 == len(self._plan)  # the next level would only yield env: do it here, no generator
         for combo in combos:
             if self.budget <= 0:
                 return
@@ -385,7 +386,10 @@ class Search:
                     rejects[r.reason] = rejects.get(r.reason, 0) + 1
                     continue
                 env[st.name] = val
-                yield from self._rec(i + 1, env, val, used2)
+                if last:
+                    yield env
+                else:
+                    yield from self._rec(i + 1, env, val, used2)
                 env.pop(st.name, None)
                 if self.budget <= 0:
                     break
