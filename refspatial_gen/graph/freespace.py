@@ -42,11 +42,8 @@ def gravity_rotation(graph_or_geom) -> np.ndarray:
 def pixel_to_plane(frame: Frame, G: np.ndarray, px: float, py: float, z: float) -> np.ndarray | None:
     """Gravity-world point where the ray through pixel centre (px, py) meets the plane at height z."""
     cam = frame.camera
-    return _ray_to_plane(cam, G @ cam.world_from_cam[:3, :3], G @ cam.world_from_cam[:3, 3], px, py, z)
-
-
-def _ray_to_plane(cam, R: np.ndarray, o: np.ndarray, px: float, py: float, z: float) -> np.ndarray | None:
-    """`pixel_to_plane` with the camera pose in the gravity world (R, o) computed once by the caller."""
+    R = G @ cam.world_from_cam[:3, :3]
+    o = G @ cam.world_from_cam[:3, 3]
     d_cam = np.array([(px + 0.5 - cam.cx) / cam.fx, (py + 0.5 - cam.cy) / cam.fy, 1.0])
     d = R @ d_cam
     if abs(d[2]) < 1e-12:
@@ -126,15 +123,22 @@ def _obstacles(geom: SceneGeom, z: float, gap: float) -> list[np.ndarray]:
 
 def _view_polygon(geom: SceneGeom, z: float) -> Polygon | None:
     """The part of the plane at height z that the image covers."""
-    W, H = geom.W, geom.H
-    k = 12
-    border = ([(x, 0) for x in np.linspace(0, W - 1, k)] + [(W - 1, y) for y in np.linspace(0, H - 1, k)]
-              + [(x, H - 1) for x in np.linspace(W - 1, 0, k)] + [(0, y) for y in np.linspace(H - 1, 0, k)])
-    # per-pixel pixel_to_plane (not a batched matmul) keeps the hull bit-identical to the checker's rays
-    cam, G = geom.frame.camera, geom.gravity.rotation
-    R, o = G @ cam.world_from_cam[:3, :3], G @ cam.world_from_cam[:3, 3]
-    pts = [_ray_to_plane(cam, R, o, x, y, z) for x, y in border]
-    pts = [p[:2] for p in pts if p is not None and np.linalg.norm(p - geom.cam_pos_g) < 50.0]
+    if "_view_rays" not in geom.cache:  # the border rays do not depend on the plane: one set per frame
+        W, H = geom.W, geom.H
+        k = 12
+        border = ([(x, 0) for x in np.linspace(0, W - 1, k)] + [(W - 1, y) for y in np.linspace(0, H - 1, k)]
+                  + [(x, H - 1) for x in np.linspace(W - 1, 0, k)] + [(0, y) for y in np.linspace(H - 1, 0, k)])
+        cam, G = geom.frame.camera, geom.gravity.rotation
+        R, o = G @ cam.world_from_cam[:3, :3], G @ cam.world_from_cam[:3, 3]
+        # one matrix-vector product per pixel, as pixel_to_plane does, so the hull matches its rays bit for bit
+        rays = np.array([R @ np.array([(x + 0.5 - cam.cx) / cam.fx, (y + 0.5 - cam.cy) / cam.fy, 1.0])
+                         for x, y in border])
+        geom.cache["_view_rays"] = (o, rays)
+    o, d = geom.cache["_view_rays"]
+    ok = np.abs(d[:, 2]) >= 1e-12
+    t = (z - o[2]) / np.where(ok, d[:, 2], 1.0)
+    hits = o + t[:, None] * d  # elementwise, as pixel_to_plane's o + t * d
+    pts = [p[:2] for p, good in zip(hits, ok & (t > 0)) if good and np.linalg.norm(p - geom.cam_pos_g) < 50.0]
     if len(pts) < 3:
         return None
     return shapely.convex_hull(shapely.multipoints(np.array(pts)))
@@ -151,9 +155,12 @@ def _largest(g) -> Polygon | None:
     return max(polys, key=lambda p: (round(p.area, 9), p.centroid.x, p.centroid.y))
 
 
+_WEDGE_SPREAD = np.linspace(-np.pi / 4, np.pi / 4, 9)
+
+
 def _wedge(apex: np.ndarray, direction: np.ndarray, radius: float, k: int = 9) -> Polygon:
     ang = np.arctan2(direction[1], direction[0])
-    a = ang + np.linspace(-np.pi / 4, np.pi / 4, k)
+    a = ang + (_WEDGE_SPREAD if k == 9 else np.linspace(-np.pi / 4, np.pi / 4, k))
     arc = apex + radius * np.stack([np.cos(a), np.sin(a)], axis=1)
     return shapely.polygons(np.vstack([apex, arc]))
 
