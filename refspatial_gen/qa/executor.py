@@ -347,7 +347,13 @@ class Search:
     def candidates(self, name: str) -> list:
         c = self._cands.get(name)
         if c is None:
-            base = slot_candidates(self.t, name, {}, self.ctx)
+            # the unshuffled list depends only on (template, slot, frame): kept on the frame's index
+            memo = self.ctx.idx.slot_memo
+            mk = (id(self.t), name)
+            hit = memo.get(mk)
+            if hit is None or hit[0] is not self.t:
+                hit = memo[mk] = (self.t, tuple(slot_candidates(self.t, name, {}, self.ctx)))
+            base = list(hit[1])
             if len(base) > 1:
                 order = self.ctx.rng.permutation(len(base))
                 base = [base[int(k)] for k in order]

@@ -79,6 +79,8 @@ class SceneIndex:
         self._pairs: dict[tuple, Fact] | None = None
         self._runs: dict[int, np.ndarray] = {}
         self._sizes: dict[int, tuple[float, float, float]] = {}
+        # executor: (id(template), slot) -> (template, unshuffled candidates); the template guards id reuse
+        self.slot_memo: dict[tuple[int, str], tuple] = {}
         self.by_category: dict[str, frozenset[int]] = {
             c: frozenset(i for i in self.ids if self.category[i] == c) for c in self.categories}
         self.by_color: dict[str, frozenset[int]] = {
