@@ -11,7 +11,6 @@ import argparse
 import json
 import os
 import platform
-import resource
 import shutil
 import tempfile
 import time
@@ -27,7 +26,9 @@ SHARED = Path(os.environ.get("REFSPATIAL_SHARED_DATA", ROOT.parent / "shared" / 
 
 
 def _peak_mb() -> float:
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    from refspatial_gen.run.executor import peak_rss_mb
+
+    return peak_rss_mb()
 
 
 def bench_sim(n_scenes: int, work: Path) -> dict[str, Any]:
@@ -96,7 +97,7 @@ def bench_stream(shard_dir: Path, work: Path) -> dict[str, Any]:
     return stream_vs_webdataset(shard_dir, work_dir=work / "wds")
 
 
-def bench_scaling(scenes: int, work: Path) -> dict[str, Any]:
+def bench_scaling(scenes: int, mem_scenes: int, work: Path) -> dict[str, Any]:
     """Executor scaling 1 -> 2 workers, and per-worker peak memory for `scenes` vs 10x `scenes` (default recipe)."""
     from refspatial_gen.recipe import load_recipe
     from refspatial_gen.run.executor import RecipeRef, run_plan
@@ -114,21 +115,22 @@ def bench_scaling(scenes: int, work: Path) -> dict[str, Any]:
         shutil.rmtree(d)
     out["speedup_1_to_2"] = round(walls[1] / walls[2], 2)
     mem = {}
-    for n in (scenes, scenes * 10):
+    for n in (mem_scenes, mem_scenes * 10):
         d = work / f"mem-{n}"
         r = load_recipe(DEFAULT_RECIPE, scenes=n)
         res = run_plan(r, RecipeRef(str(DEFAULT_RECIPE), None, n, None), d, workers=2, progress=False, fresh=True)
         mem[n] = res["run_log"]["peak_rss_mb_per_worker"]
         shutil.rmtree(d)
     out["peak_rss_mb_per_worker_by_scenes"] = {str(k): v for k, v in mem.items()}
-    out["memory_growth_10x"] = round(mem[scenes * 10] / mem[scenes], 3)
+    out["memory_growth_10x"] = round(mem[mem_scenes * 10] / mem[mem_scenes], 3)
     return out
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m refspatial_gen.bench", description=__doc__)
     ap.add_argument("--scenes", type=int, default=24, help="scenes for the simulated pipeline")
-    ap.add_argument("--scale-scenes", type=int, default=16, help="scenes for the scaling run (memory uses 10x)")
+    ap.add_argument("--scale-scenes", type=int, default=48, help="scenes for the 1 vs 2 worker scaling run")
+    ap.add_argument("--mem-scenes", type=int, default=16, help="scenes for the memory run (and 10x as many)")
     ap.add_argument("--only", nargs="*", default=None, choices=["sim", "qa", "image", "stream", "scale"])
     ap.add_argument("--json", default=None, help="also write the figures to this file")
     args = ap.parse_args(argv)
@@ -151,7 +153,7 @@ def main(argv: list[str] | None = None) -> int:
                 make_toy_shards(shard_dir)
                 figures["stream"] = bench_stream(shard_dir, work)
             elif name == "scale":
-                figures["scale"] = bench_scaling(args.scale_scenes, work)
+                figures["scale"] = bench_scaling(args.scale_scenes, args.mem_scenes, work)
             print(f"== {name} ({time.perf_counter() - t0:.1f} s)\n{json.dumps(figures[name], indent=2)}", flush=True)
     finally:
         shutil.rmtree(work, ignore_errors=True)

@@ -117,9 +117,21 @@ def run_group(task: GroupTask) -> dict[str, Any]:
     timer.add("write", t)
     record = {"group": task.group_index, "units": [u[0] for u in task.units], "shards": infos, "stats": stats}
     atomic_write_bytes(out / PARTS / f"shard-{task.group_index:05d}.json", dumps(record))
-    peak_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    return {"record": record, "stage_seconds": timer.seconds, "peak_rss_mb": peak_kb / 1024.0, "errors": errors,
+    return {"record": record, "stage_seconds": timer.seconds, "peak_rss_mb": peak_rss_mb(), "errors": errors,
             "pid": os.getpid()}
+
+
+def peak_rss_mb() -> float:
+    """This process's own peak resident memory. VmHWM, not ru_maxrss: ru_maxrss survives exec, so a spawned
+    worker would report its parent's peak."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass  # not Linux: fall back to getrusage below
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
 def _info_dict(info: Any) -> dict[str, Any]:
