@@ -8,11 +8,11 @@ the mcap library writes no clock or host data (checked in tests), and each part 
 
 from __future__ import annotations
 
-import hashlib
 import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from refspatial_gen.core.fsutil import sha256_file  # re-exported: shards.sha256_file
 from refspatial_gen.core.model import Sample
 from refspatial_gen.shards.format import (
     JSON_SCHEMA,
@@ -54,14 +54,6 @@ def part_name(final_path: Path, part: int) -> Path:
     if part == 0:
         return final_path
     return final_path.with_name(f"{final_path.stem}-{part:02d}{final_path.suffix}")
-
-
-def sha256_file(path: Path, block: int = 1 << 20) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        while chunk := f.read(block):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 class _Part:
