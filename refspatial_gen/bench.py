@@ -129,7 +129,7 @@ def bench_scaling(scenes: int, mem_scenes: int, work: Path) -> dict[str, Any]:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m refspatial_gen.bench", description=__doc__)
     ap.add_argument("--scenes", type=int, default=24, help="scenes for the simulated pipeline")
-    ap.add_argument("--scale-scenes", type=int, default=48, help="scenes for the 1 vs 2 worker scaling run")
+    ap.add_argument("--scale-scenes", type=int, default=96, help="scenes for the 1 vs 2 worker scaling run")
     ap.add_argument("--mem-scenes", type=int, default=16, help="scenes for the memory run (and 10x as many)")
     ap.add_argument("--only", nargs="*", default=None, choices=["sim", "qa", "image", "stream", "scale"])
     ap.add_argument("--json", default=None, help="also write the figures to this file")
