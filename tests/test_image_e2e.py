@@ -5,6 +5,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.helpers.depth_models import build_tiny_depth_anything
+
 REPO = Path(__file__).resolve().parents[1]
 
 pytestmark = pytest.mark.slow
@@ -33,7 +35,7 @@ def test_shards_through_tiny_depth_anything_verify(shared_data, tmp_path):
     pytest.importorskip("open3d")
     pytest.importorskip("transformers")
 
-    model_dir = _build_tiny_model(tmp_path / "model")
+    model_dir = build_tiny_depth_anything(tmp_path / "model")
     text = (REPO / "recipes" / "image_depth_anything.yaml").read_text()
     text = text.replace("../models/depth-anything-v2-small", str(model_dir))
     text = text.replace("templates/", str(REPO / "recipes" / "templates") + "/")
@@ -43,27 +45,3 @@ def test_shards_through_tiny_depth_anything_verify(shared_data, tmp_path):
     assert res["qa_pairs"] >= 20
     # every pair the generator emits must pass the independent verifier
     assert res["failed"] == 0, res["failures"][:3]
-
-
-def _build_tiny_model(d: Path) -> Path:
-    import torch
-    from transformers import DepthAnythingConfig, DepthAnythingForDepthEstimation, Dinov2Config
-
-    backbone = Dinov2Config(hidden_size=32, num_hidden_layers=2, num_attention_heads=2, intermediate_size=64,
-                            image_size=56, patch_size=14, out_features=["stage1", "stage2"], out_indices=[1, 2],
-                            reshape_hidden_states=False)
-    cfg = DepthAnythingConfig(backbone_config=backbone, reassemble_hidden_size=32, neck_hidden_sizes=[16, 32],
-                              reassemble_factors=[2, 1], fusion_hidden_size=16, head_hidden_size=8)
-    torch.manual_seed(0)
-    model = DepthAnythingForDepthEstimation(cfg).eval()
-    with torch.no_grad():
-        model.head.conv3.weight.mul_(1e4)
-        model.head.conv3.bias.fill_(1.0)
-    try:
-        from transformers import DPTImageProcessorPil as Proc
-    except ImportError:
-        from transformers import DPTImageProcessor as Proc
-    proc = Proc(do_resize=True, size={"height": 56, "width": 56}, keep_aspect_ratio=False, ensure_multiple_of=14)
-    model.save_pretrained(d)
-    proc.save_pretrained(d)
-    return d
