@@ -3,7 +3,6 @@ temporary folder, loaded back offline) and a tiny ONNX depth model, run through 
 
 Skipped when torch/transformers (or onnx/onnxruntime) are not installed; CI installs them."""
 
-import json
 
 import numpy as np
 import pytest
