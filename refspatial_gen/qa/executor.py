@@ -341,8 +341,10 @@ class Search:
         self._cands: dict[str, list] = {}
         self._objslots = {n for n, s in t.slots.items() if s.type in ("object", "anchor")}
         # per step, computed once: the slots it binds, which of them are objects, how often it is retried
+        from refspatial_gen.qa.compiled import compiled
+
         self._plan = [(st, st.binds, [k for k, nm in enumerate(st.binds) if nm in self._objslots],
-                       3 if st.op == "mark" else 1) for st in t.steps]
+                       3 if st.op == "mark" else 1, fn) for st, fn in zip(t.steps, compiled(t))]
 
     def candidates(self, name: str) -> list:
         c = self._cands.get(name)
@@ -368,7 +370,7 @@ class Search:
         if i == len(self._plan):
             yield env
             return
-        st, names, objs, tries = self._plan[i]
+        st, names, objs, tries, fn = self._plan[i]
         combos = product(*[self.candidates(nm) for nm in names]) if names else ((),)
         ctx, rejects = self.ctx, self.rejects
         last = i + 1 == len(self._plan)  # the next level would only yield env: do it here, no generator
@@ -386,10 +388,9 @@ class Search:
                 env[nm] = v
             self.budget -= 1
             for _ in range(tries):
-                try:
-                    val = run_step(st, env, prev, ctx)
-                except Reject as r:
-                    rejects[r.reason] = rejects.get(r.reason, 0) + 1
+                val = fn(env, prev, ctx)
+                if val.__class__ is Reject:
+                    rejects[val.reason] = rejects.get(val.reason, 0) + 1
                     continue
                 env[st.name] = val
                 if last:

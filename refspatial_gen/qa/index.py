@@ -13,6 +13,7 @@ from typing import NamedTuple
 import numpy as np
 
 from refspatial_gen.core.model import FreeSpaceRegion, Frame, SceneGraph
+from refspatial_gen.graph.relations.base import decide
 
 
 # size relations the graph derives from node attributes: relation -> (base relation, arguments swapped)
@@ -25,7 +26,12 @@ _PAIR_OF = {"left": ("left", False), "right": ("left", True), "front": ("front",
             "above_image": ("above_image", False), "below_image": ("above_image", True),
             "above_world": ("above_world", False), "below_world": ("above_world", True)}
 _PAIR_BASES = frozenset(v[0] for v in _PAIR_OF.values())
-_MISS = object()  # fact-cache sentinel (None is a cached "not evaluated")
+_MISS = object()
+_INF = float("inf")
+# stored-sparse binary relations whose whole table the index builds from the stored facts (absent-instance
+# rules of GraphIndex._lookup): symmetric ones are stored once per pair
+_SPARSE = frozenset({"inside", "facing", "facing_away", "far_from", "touching", "next_to"})
+_SYMMETRIC = frozenset({"far_from", "touching", "next_to"})  # fact-cache sentinel (None is a cached "not evaluated")
 
 
 class Reject(Exception):
@@ -75,6 +81,10 @@ class SceneIndex:
         self.gindex = GraphIndex(graph, frame)
         self._fact_cache: dict[tuple, Fact | None] = {}
         self._rel_sets: dict[tuple, tuple[frozenset, frozenset, frozenset]] = {}
+        self._tabled: set[str] = set()  # relations whose whole table was tried (_fill_table)
+        self._codes: dict[str, np.ndarray | None] = {}
+        self._pos = {x: k for k, x in enumerate(self.ids)}
+        self._dist: list | None = None
         self._derived: dict[str, dict | None] = {}
         self._pairs: dict[tuple, Fact] | None = None
         self._runs: dict[int, np.ndarray] = {}
@@ -140,6 +150,10 @@ class SceneIndex:
             out = None if mat is None else mat.get(args[::-1] if base[1] else args)
             self._fact_cache[key] = out
             return out
+        if (relation == "close" or relation == "far") and self._between_ok(args):
+            out = self._close_fact(*args) if relation == "close" else self._close_fact(args[1], args[0], args[2])
+            self._fact_cache[key] = out
+            return out
         if relation == "between" and self._between_ok(args):
             h, t = self.gindex.between_code(*args)
             out = Fact(h, float(t))
@@ -150,10 +164,9 @@ class SceneIndex:
         self._fact_cache[key] = out
         return out
 
-    def between(self, b: int, c: int, s: frozenset) -> frozenset:
-        """Objects x of `s` (b and c excluded) with between(x, b, c) true; Reject("margin") when one of them is
-        undecided, Reject("no_fact") when one was not evaluated. The whole row for the anchor pair is looked
-        up once and kept (the executor's `between` op asks it for many sets)."""
+    def between_entry(self, b: int, c: int) -> tuple[frozenset, frozenset, frozenset]:
+        """(objects x with between(x, b, c) true, undecided, not evaluated), b and c excluded; the whole row for
+        the anchor pair is looked up once and kept (the executor's `between` op asks it for many sets)."""
         key = ("between", b, c)
         entry = self._rel_sets.get(key)
         if entry is None and self.gindex.world and b != c and type(b) is int and type(c) is int \
@@ -177,7 +190,12 @@ class SceneIndex:
                     true.add(x)
             entry = (frozenset(true), frozenset(undecided), frozenset(missing))
             self._rel_sets[key] = entry
-        true, undecided, missing = entry
+        return entry
+
+    def between(self, b: int, c: int, s: frozenset) -> frozenset:
+        """Objects x of `s` (b and c excluded) with between(x, b, c) true; Reject("margin") when one of them is
+        undecided, Reject("no_fact") when one was not evaluated."""
+        true, undecided, missing = self.between_entry(b, c)
         if (undecided and not undecided.isdisjoint(s)) or (missing and not missing.isdisjoint(s)):
             for x in s:  # the first bad member in the set's order names the reason, as a member-wise loop would
                 if x != b and x != c:
@@ -194,6 +212,19 @@ class SceneIndex:
         return (a != b and a != c and b != c and type(a) is int and type(b) is int and type(c) is int
                 and a in nodes and b in nodes and c in nodes)
 
+    def _close_fact(self, a: int, b: int, c: int) -> Fact | None:
+        """close(a, b, c): a is closer to c than b is (value d(b, c) - d(a, c)); far(a, b, c) = close(b, a, c).
+        The rule of GraphIndex._lookup, on the same stored distances, without building a RelationFact."""
+        d = self._dist
+        if d is None:
+            d = self._dist = self.gindex._distance_matrix().tolist()
+        pos = self._pos
+        dac, dbc = d[pos[a]][pos[c]], d[pos[b]][pos[c]]
+        if dac == _INF or dbc == _INF:
+            return None
+        v = dbc - dac
+        return Fact(decide(v, self.gindex.th.distance_margin), v)
+
     def holds(self, relation: str, args: tuple) -> bool:
         """True/False; raises Reject("margin") when undecided and Reject("no_fact") when not evaluated."""
         f = self.fact(relation, args)
@@ -209,29 +240,138 @@ class SceneIndex:
             raise Reject("no_fact")
         return f.value
 
-    def narrow(self, relation: str, anchor: int, s: frozenset) -> frozenset:
-        """Objects of `s` (anchor excluded) for which relation(x, anchor) holds. Raises Reject("margin")
-        when one of them is undecided and Reject("no_fact") when the relation was not evaluated for one."""
+    def rel_entry(self, relation: str, anchor: int) -> tuple[frozenset, frozenset, frozenset]:
+        """(objects x with relation(x, anchor) true, undecided, not evaluated), anchor excluded; built once
+        per (relation, anchor) and kept (the search asks it for many sets). Relations with a whole-matrix
+        path (stored pairs, size comparisons) fill every anchor's entry at once."""
         key = (relation, anchor)
         entry = self._rel_sets.get(key)
         if entry is None:
-            true, undecided, missing = set(), set(), set()
-            cache, fact = self._fact_cache, self.fact
-            for x in self.ids:
-                if x == anchor:
-                    continue
+            if relation not in self._tabled and self._fill_table(relation):
+                entry = self._rel_sets.get(key)
+            if entry is None:
+                entry = self._rel_sets[key] = self._entry_of(relation, anchor, None)
+        return entry
+
+    def _entry_of(self, relation: str, anchor: int, codes: list | None) -> tuple[frozenset, frozenset, frozenset]:
+        """One anchor's entry, from a row of holds codes (1 true, 0 false, 2 undecided, 3 not stored) over
+        self.ids, or fact by fact when `codes` is None; a code 3 asks fact() (the general path decides)."""
+        true, undecided, missing = [], [], []
+        cache, fact = self._fact_cache, self.fact
+        for k, x in enumerate(self.ids):
+            if x == anchor:
+                continue
+            c = 3 if codes is None else codes[k]
+            if c == 1:
+                true.append(x)
+            elif c == 2:
+                undecided.append(x)
+            elif c == 3:
                 f = cache.get((relation, (x, anchor)), _MISS)
                 if f is _MISS:
                     f = fact(relation, (x, anchor))
                 if f is None:
-                    missing.add(x)
+                    missing.append(x)
                 elif f.holds is None:
-                    undecided.add(x)
+                    undecided.append(x)
                 elif f.holds:
-                    true.add(x)
-            entry = (frozenset(true), frozenset(undecided), frozenset(missing))
-            self._rel_sets[key] = entry
-        true, undecided, missing = entry
+                    true.append(x)
+        return frozenset(true), frozenset(undecided), frozenset(missing)
+
+    def _fill_table(self, relation: str) -> bool:
+        """Every anchor's entry of a relation with a whole-matrix path; False when it has none."""
+        self._tabled.add(relation)
+        mat = None
+        pair = _PAIR_OF.get(relation)
+        if pair is not None and (pair[0] != "above_world" or self.gindex.world):
+            mat, swap = self._pair_codes(pair[0]), pair[1]
+        elif relation in _SPARSE or relation == "outside":
+            mat, swap = self._sparse_codes(relation), False
+        else:
+            d = _DERIVED_OF.get(relation)
+            if d is not None:
+                mat, swap = self._derived_codes(d[0]), d[1]
+        if mat is None:
+            return False
+        # entry for anchor j reads relation(x, anchor) = base(x, anchor), or base(anchor, x) when swapped
+        cols = mat.tolist() if swap else mat.T.tolist()
+        for j, anchor in enumerate(self.ids):
+            self._rel_sets[(relation, anchor)] = self._entry_of(relation, anchor, cols[j])
+        return True
+
+    def _pair_codes(self, base: str) -> np.ndarray:
+        """codes[i, j] of a stored antisymmetric relation base(ids[i], ids[j]) in both directions (the same
+        storage rule, and the same overwrite order, as _load_pairs)."""
+        m = self._codes.get(base)
+        if m is None:
+            pos = {x: k for k, x in enumerate(self.ids)}
+            m = np.full((len(self.ids), len(self.ids)), 3, dtype=np.int8)
+            for f in self.graph.facts:
+                if f.relation == base and len(f.args) == 2:
+                    a, b = int(f.args[0]), int(f.args[1])
+                    if a in pos and b in pos and a != b:
+                        h = f.holds
+                        m[pos[a], pos[b]] = 2 if h is None else int(bool(h))
+                        m[pos[b], pos[a]] = 2 if h is None else int(not h)
+            self._codes[base] = m
+        return m
+
+    def _sparse_codes(self, relation: str) -> np.ndarray | None:
+        """codes[i, j] of a sparse stored relation (or outside = not inside) with GraphIndex._lookup's rule for
+        absent instances: inside False; facing/facing_away False, or undecided when A has no front;
+        far_from/touching/next_to stored in either direction, else False when the pair has a distance."""
+        if relation in self._codes:
+            return self._codes[relation]
+        out = None
+        if self.gindex.world:
+            if relation == "outside":
+                inside = self._sparse_codes("inside")
+                out = inside.copy()
+                out[inside == 1], out[inside == 0] = 0, 1
+            else:
+                n, pos = len(self.ids), self._pos
+                if relation == "inside":
+                    out = np.zeros((n, n), dtype=np.int8)
+                elif relation in _SYMMETRIC:
+                    if self._dist is None:
+                        self._dist = self.gindex._distance_matrix().tolist()
+                    out = np.where(np.isinf(np.array(self._dist, float)), 3, 0).astype(np.int8)
+                else:  # facing, facing_away
+                    nofront = [self.nodes[i].attributes.get("front") is None for i in self.ids]
+                    out = np.zeros((n, n), dtype=np.int8)
+                    out[np.array(nofront, bool), :] = 2
+                direct = []
+                for f in self.graph.facts:
+                    if f.relation == relation and len(f.args) == 2:
+                        a, b = f.args
+                        if a in pos and b in pos and a != b:
+                            h = f.holds
+                            direct.append((pos[a], pos[b], 2 if h is None else int(bool(h))))
+                if relation in _SYMMETRIC:  # a reversed stored instance counts unless the pair is stored as asked
+                    for i, j, c in direct:
+                        out[j, i] = c
+                for i, j, c in direct:
+                    out[i, j] = c
+        self._codes[relation] = out
+        return out
+
+    def _derived_codes(self, base: str) -> np.ndarray | None:
+        """codes[i, j] of a size comparison base(ids[i], ids[j]) (the matrix _derived_matrix decides from)."""
+        if base not in self._codes:
+            mat = self._derived_matrix(base)
+            out = None
+            if mat is not None:
+                n = len(self.ids)
+                out = np.full((n, n), 3, dtype=np.int8)
+                for (a, b), f in mat.items():
+                    out[self._pos[a], self._pos[b]] = 2 if f.holds is None else int(f.holds)
+            self._codes[base] = out
+        return self._codes[base]
+
+    def narrow(self, relation: str, anchor: int, s: frozenset) -> frozenset:
+        """Objects of `s` (anchor excluded) for which relation(x, anchor) holds. Raises Reject("margin")
+        when one of them is undecided and Reject("no_fact") when the relation was not evaluated for one."""
+        true, undecided, missing = self.rel_entry(relation, anchor)
         if undecided and not undecided.isdisjoint(s):
             raise Reject("margin")
         if missing and not missing.isdisjoint(s):

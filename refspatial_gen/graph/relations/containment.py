@@ -34,39 +34,43 @@ def _inside(geom):
 
 
 def between_table(xy: np.ndarray, ids: np.ndarray, categories: list[str], dist: np.ndarray, th) -> dict:
-    """{(a, b, c) positions: (code, t)} for anchors b, c with ids[b] < ids[c}; False instances omitted.
-    Shared by the geometry and the query index (which passes stored node centres and distances)."""
+    """{(a, b, c) positions: (code, t)} for anchors b, c with ids[b] < ids[c]; False instances omitted.
+    Shared by the geometry and the query index (which passes stored node centres and distances). All anchor
+    pairs at once (the QA index builds this table for every sample)."""
+    ids = np.asarray(ids)
     n = len(ids)
-    out: dict[tuple[int, int, int], tuple[int, float]] = {}
-    for b in range(n):
-        for c in range(n):
-            if b == c or ids[b] > ids[c]:
-                continue
-            seg = xy[c] - xy[b]
-            L = float(np.linalg.norm(seg))
-            if L < MIN_BETWEEN_SPAN:
-                continue
-            u = seg / L
-            rel = xy - xy[b]
-            t = rel @ u / L
-            lat = np.abs(rel @ np.array([-u[1], u[0]]))
-            corridor = th.between_corridor * L
-            yes = (t > th.between_t_margin) & (t < 1 - th.between_t_margin) & (lat < corridor)
-            no = (t < 0) | (t > 1) | (lat > 1.5 * corridor)
-            clear = (dist[:, b] > 1e-6) & (dist[:, c] > 1e-6)
-            for a in np.flatnonzero(~no):
-                if a in (b, c):
-                    continue
-                out[(int(a), b, c)] = (TRUE if (yes[a] and clear[a]) else UNDECIDED, float(t[a]))
+    if n < 3:
+        return {}
+    xy = np.asarray(xy, float).reshape(n, 2)
+    B, C = np.nonzero(ids[:, None] < ids[None, :])  # row-major: the order of the nested (b, c) loops
+    seg = xy[C] - xy[B]
+    L = np.sqrt(seg[:, 0] * seg[:, 0] + seg[:, 1] * seg[:, 1])
+    keep = L >= MIN_BETWEEN_SPAN
+    B, C, seg, L = B[keep], C[keep], seg[keep], L[keep]
+    if not len(B):
+        return {}
+    u = seg / L[:, None]
+    rel = xy[None, :, :] - xy[B][:, None, :]  # rel[p, a] = A - B of anchor pair p
+    t = (rel[..., 0] * u[:, None, 0] + rel[..., 1] * u[:, None, 1]) / L[:, None]
+    lat = np.abs(rel[..., 1] * u[:, None, 0] - rel[..., 0] * u[:, None, 1])
+    corridor = th.between_corridor * L[:, None]
+    m = th.between_t_margin
+    yes = (t > m) & (t < 1 - m) & (lat < corridor)
+    cand = ~((t < 0) | (t > 1) | (lat > 1.5 * corridor))
+    rows = np.arange(len(B))
+    cand[rows, B] = False
+    cand[rows, C] = False
+    dist = np.asarray(dist, float)
+    clear = (dist[:, B].T > 1e-6) & (dist[:, C].T > 1e-6)
     # a second object of A's category also (possibly) between B and C makes A ambiguous
-    by_anchor: dict[tuple[int, int], list[int]] = {}
-    for (a, b, c) in out:
-        by_anchor.setdefault((b, c), []).append(a)
-    for (b, c), members in by_anchor.items():
-        for a in members:
-            if out[(a, b, c)][0] == TRUE and any(categories[o] == categories[a] for o in members if o != a):
-                out[(a, b, c)] = (UNDECIDED, out[(a, b, c)][1])
-    return out
+    cat = np.unique(np.asarray(categories, dtype=object).astype(str), return_inverse=True)[1].reshape(n)
+    same = (cat[:, None] == cat[None, :]) & ~np.eye(n, dtype=bool)
+    ambiguous = (cand.astype(np.int64) @ same.astype(np.int64)) > 0
+    code = np.where(yes & clear & ~ambiguous, TRUE, UNDECIDED)
+    P, A = np.nonzero(cand)
+    Bl, Cl = B.tolist(), C.tolist()
+    return {(a, Bl[p], Cl[p]): (c, tv) for p, a, c, tv in
+            zip(P.tolist(), A.tolist(), code[P, A].tolist(), t[P, A].tolist())}
 
 
 def _between(geom):
