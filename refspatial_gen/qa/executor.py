@@ -364,44 +364,60 @@ class Search:
 
     def instances(self):
         env: dict[str, Any] = {}
-        yield from self._rec(0, env, None, set())
+        yield from self._rec(0, env, None, frozenset())
 
-    def _rec(self, i: int, env: dict[str, Any], prev: Any, used: set):
-        if i == len(self._plan):
-            yield env
-            return
+    def _rec(self, i: int, env: dict[str, Any], prev: Any, used: frozenset):
         st, names, objs, tries, fn = self._plan[i]
-        combos = product(*[self.candidates(nm) for nm in names]) if names else ((),)
-        ctx, rejects = self.ctx, self.rejects
+        ctx, rejects, out = self.ctx, self.rejects, st.name
         last = i + 1 == len(self._plan)  # the next level would only yield env: do it here, no generator
+        combos = product(*[self.candidates(nm) for nm in names]) if names else ((),)
+        n_names = len(names)
+        one_obj = objs[0] if len(objs) == 1 else None
         for combo in combos:
             if self.budget <= 0:
-                return
+                break
             if objs:
-                vals = [combo[k] for k in objs]
-                if len(set(vals)) != len(vals) or not used.isdisjoint(vals):
-                    continue
-                used2 = used | set(vals)
+                if one_obj is not None:
+                    if combo[one_obj] in used:
+                        continue
+                else:
+                    vals = [combo[k] for k in objs]
+                    if len(set(vals)) != len(vals) or (used and not used.isdisjoint(vals)):
+                        continue
+            if n_names == 1:
+                env[names[0]] = combo[0]
+            elif n_names == 2:
+                env[names[0]], env[names[1]] = combo
             else:
-                used2 = used
-            for nm, v in zip(names, combo):
-                env[nm] = v
+                for nm, v in zip(names, combo):
+                    env[nm] = v
             self.budget -= 1
+            if tries == 1:
+                val = fn(env, prev, ctx)
+                if val.__class__ is Reject:
+                    rejects[val.reason] = rejects.get(val.reason, 0) + 1
+                    continue
+                env[out] = val
+                if last:
+                    yield env
+                else:
+                    yield from self._rec(i + 1, env, val, used.union([combo[k] for k in objs]) if objs else used)
+                continue
             for _ in range(tries):
                 val = fn(env, prev, ctx)
                 if val.__class__ is Reject:
                     rejects[val.reason] = rejects.get(val.reason, 0) + 1
                     continue
-                env[st.name] = val
+                env[out] = val
                 if last:
                     yield env
                 else:
-                    yield from self._rec(i + 1, env, val, used2)
-                env.pop(st.name, None)
+                    yield from self._rec(i + 1, env, val, used.union([combo[k] for k in objs]) if objs else used)
                 if self.budget <= 0:
                     break
-            for nm in names:
-                env.pop(nm, None)
+        env.pop(out, None)
+        for nm in names:
+            env.pop(nm, None)
 
 
 def replay(t: Template, env: dict[str, Any], ctx: Context, drop: int | None = None) -> Any:

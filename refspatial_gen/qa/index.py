@@ -8,6 +8,7 @@ storage and mirror conventions); this module adds no geometry of relations.
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -25,9 +26,9 @@ _DERIVED_OF = {"tall": ("tall", False), "short": ("tall", True), "big": ("big", 
 _PAIR_OF = {"left": ("left", False), "right": ("left", True), "front": ("front", False), "behind": ("front", True),
             "above_image": ("above_image", False), "below_image": ("above_image", True),
             "above_world": ("above_world", False), "below_world": ("above_world", True)}
-_PAIR_BASES = frozenset(v[0] for v in _PAIR_OF.values())
 _MISS = object()
 _INF = float("inf")
+_HOLDS = (False, True, None, None)  # holds by table code (1 true, 0 false, 2 undecided; 3 = not stored)
 # stored-sparse binary relations whose whole table the index builds from the stored facts (absent-instance
 # rules of GraphIndex._lookup): symmetric ones are stored once per pair
 _SPARSE = frozenset({"inside", "facing", "facing_away", "far_from", "touching", "next_to"})
@@ -85,8 +86,8 @@ class SceneIndex:
         self._codes: dict[str, np.ndarray | None] = {}
         self._pos = {x: k for k, x in enumerate(self.ids)}
         self._dist: list | None = None
-        self._derived: dict[str, dict | None] = {}
-        self._pairs: dict[tuple, Fact] | None = None
+        self._derived: dict[str, tuple | None] = {}
+        self._pairs: dict[str, tuple] = {}
         self._runs: dict[int, np.ndarray] = {}
         self._sizes: dict[int, tuple[float, float, float]] = {}
         # executor: (id(template), slot) -> (template, unshuffled candidates); the template guards id reuse
@@ -98,11 +99,12 @@ class SceneIndex:
         self.all = frozenset(self.ids)
 
     # ------------------------------------------------------------------ facts
-    def _derived_matrix(self, base: str) -> dict[tuple, Fact] | None:
-        """All pairs of a size comparison at once, with the graph's own decision function on the stored
-        node attributes (exactly what GraphIndex derives one pair at a time; a test pins the equality)."""
+    def _derived_tables(self, base: str) -> tuple[np.ndarray, list, list] | None:
+        """(codes, holds rows, value rows) of a size comparison over self.ids, with the graph's own decision
+        function on the stored node attributes (what GraphIndex derives one pair at a time; a test pins the
+        equality). None without gravity or thresholds."""
         if base not in self._derived:
-            from refspatial_gen.graph.relations.common import holds_of
+            from refspatial_gen.graph.relations.common import TRUE, UNDECIDED
             from refspatial_gen.graph.relations.sizes import DERIVED, compare
 
             th, ids = self.gindex.th, self.ids
@@ -111,24 +113,35 @@ class SceneIndex:
                 attr, abs_name, rel_name = DERIVED[base]
                 q = np.array([self.nodes[i].attributes[attr] for i in ids], float)
                 v, codes, m = compare(q, getattr(th, abs_name) if abs_name else 0.0, getattr(th, rel_name))
-                hs = [[holds_of(c) for c in row] for row in np.asarray(codes).astype(int).tolist()]
+                codes = np.asarray(codes).astype(int)
+                ours = np.where(codes == UNDECIDED, 2, np.where(codes == TRUE, 1, 0)).astype(np.int8)
+                np.fill_diagonal(ours, 3)
+                hs = [[_HOLDS[c] for c in row] for row in ours.tolist()]
                 vs = np.asarray(v, dtype=float).tolist()  # python floats: same values, no per-element numpy
-                out = {(a, b): Fact(hs[i][j], vs[i][j])
-                       for i, a in enumerate(ids) for j, b in enumerate(ids) if i != j}
+                out = (ours, hs, vs)
             self._derived[base] = out
         return self._derived[base]
 
-    def _load_pairs(self) -> None:
-        """Stored antisymmetric pair facts in both directions at once (R(b, a) = not R(a, b), value negated:
-        the storage rule of graph.query; a test pins the equality with GraphIndex)."""
-        out: dict[tuple, Fact] = {}
-        for f in self.graph.facts:
-            if f.relation in _PAIR_BASES and len(f.args) == 2:
-                a, b = int(f.args[0]), int(f.args[1])
-                if a in self.nodes and b in self.nodes and a != b:
-                    out[(f.relation, a, b)] = Fact(f.holds, float(f.value))
-                    out[(f.relation, b, a)] = Fact(None if f.holds is None else not f.holds, -float(f.value))
-        self._pairs = out
+    def _pair_tables(self, base: str) -> tuple[np.ndarray, list, list]:
+        """(codes, code rows, value rows) of a stored antisymmetric relation in both directions: R(b, a) = not
+        R(a, b), value negated (the storage rule of graph.query; a test pins the equality with GraphIndex).
+        Code 3 = not stored."""
+        tab = self._pairs.get(base)
+        if tab is None:
+            pos = self._pos
+            n = len(self.ids)
+            codes = np.full((n, n), 3, dtype=np.int8)
+            vals = np.zeros((n, n))
+            for f in self.graph.facts:
+                if f.relation == base and len(f.args) == 2:
+                    a, b = int(f.args[0]), int(f.args[1])
+                    if a in pos and b in pos and a != b:
+                        h, i, j = f.holds, pos[a], pos[b]
+                        codes[i, j] = 2 if h is None else int(bool(h))
+                        codes[j, i] = 2 if h is None else int(not h)
+                        vals[i, j], vals[j, i] = float(f.value), -float(f.value)
+            tab = self._pairs[base] = (codes, codes.tolist(), vals.tolist())
+        return tab
 
     def fact(self, relation: str, args: tuple) -> Fact | None:
         key = (relation, args)
@@ -136,18 +149,23 @@ class SceneIndex:
         if f is not _MISS:
             return f
         pair = _PAIR_OF.get(relation)
-        if pair is not None and (pair[0] != "above_world" or self.gindex.world):
-            if self._pairs is None:
-                self._load_pairs()
+        pos = self._pos
+        if pair is not None and (pair[0] != "above_world" or self.gindex.world) and len(args) == 2:
+            _, cl, vl = self._pair_tables(pair[0])
             a, b = args[::-1] if pair[1] else args
-            f = self._pairs.get((pair[0], a, b))
-            if f is not None:
-                self._fact_cache[key] = f
+            i, j = pos.get(a), pos.get(b)
+            if i is not None and j is not None and cl[i][j] != 3:
+                f = self._fact_cache[key] = Fact(_HOLDS[cl[i][j]], vl[i][j])
                 return f
         base = _DERIVED_OF.get(relation)
         if base is not None:
-            mat = self._derived_matrix(base[0])
-            out = None if mat is None else mat.get(args[::-1] if base[1] else args)
+            tab = self._derived_tables(base[0])
+            out = None
+            if tab is not None and len(args) == 2:
+                a, b = args[::-1] if base[1] else args
+                i, j = pos.get(a), pos.get(b)
+                if i is not None and j is not None and i != j:
+                    out = Fact(tab[1][i][j], tab[2][i][j])
             self._fact_cache[key] = out
             return out
         if (relation == "close" or relation == "far") and self._between_ok(args):
@@ -284,13 +302,14 @@ class SceneIndex:
         mat = None
         pair = _PAIR_OF.get(relation)
         if pair is not None and (pair[0] != "above_world" or self.gindex.world):
-            mat, swap = self._pair_codes(pair[0]), pair[1]
+            mat, swap = self._pair_tables(pair[0])[0], pair[1]
         elif relation in _SPARSE or relation == "outside":
             mat, swap = self._sparse_codes(relation), False
         else:
             d = _DERIVED_OF.get(relation)
             if d is not None:
-                mat, swap = self._derived_codes(d[0]), d[1]
+                tab = self._derived_tables(d[0])
+                mat, swap = (None if tab is None else tab[0]), d[1]
         if mat is None:
             return False
         # entry for anchor j reads relation(x, anchor) = base(x, anchor), or base(anchor, x) when swapped
@@ -298,23 +317,6 @@ class SceneIndex:
         for j, anchor in enumerate(self.ids):
             self._rel_sets[(relation, anchor)] = self._entry_of(relation, anchor, cols[j])
         return True
-
-    def _pair_codes(self, base: str) -> np.ndarray:
-        """codes[i, j] of a stored antisymmetric relation base(ids[i], ids[j]) in both directions (the same
-        storage rule, and the same overwrite order, as _load_pairs)."""
-        m = self._codes.get(base)
-        if m is None:
-            pos = {x: k for k, x in enumerate(self.ids)}
-            m = np.full((len(self.ids), len(self.ids)), 3, dtype=np.int8)
-            for f in self.graph.facts:
-                if f.relation == base and len(f.args) == 2:
-                    a, b = int(f.args[0]), int(f.args[1])
-                    if a in pos and b in pos and a != b:
-                        h = f.holds
-                        m[pos[a], pos[b]] = 2 if h is None else int(bool(h))
-                        m[pos[b], pos[a]] = 2 if h is None else int(not h)
-            self._codes[base] = m
-        return m
 
     def _sparse_codes(self, relation: str) -> np.ndarray | None:
         """codes[i, j] of a sparse stored relation (or outside = not inside) with GraphIndex._lookup's rule for
@@ -355,19 +357,6 @@ class SceneIndex:
         self._codes[relation] = out
         return out
 
-    def _derived_codes(self, base: str) -> np.ndarray | None:
-        """codes[i, j] of a size comparison base(ids[i], ids[j]) (the matrix _derived_matrix decides from)."""
-        if base not in self._codes:
-            mat = self._derived_matrix(base)
-            out = None
-            if mat is not None:
-                n = len(self.ids)
-                out = np.full((n, n), 3, dtype=np.int8)
-                for (a, b), f in mat.items():
-                    out[self._pos[a], self._pos[b]] = 2 if f.holds is None else int(f.holds)
-            self._codes[base] = out
-        return self._codes[base]
-
     def narrow(self, relation: str, anchor: int, s: frozenset) -> frozenset:
         """Objects of `s` (anchor excluded) for which relation(x, anchor) holds. Raises Reject("margin")
         when one of them is undecided and Reject("no_fact") when the relation was not evaluated for one."""
@@ -402,13 +391,16 @@ class SceneIndex:
         return k % 2 == 1
 
     def size(self, object_id: int) -> tuple[float, float, float]:
-        """(larger horizontal extent, smaller horizontal extent, height) in metres, from the 3D box."""
+        """(larger horizontal extent, smaller horizontal extent, height) in metres, from the 3D box: the
+        footprint's edge lengths and the box's vertical extent, in closed form (no corner arrays)."""
         out = self._sizes.get(object_id)
         if out is None:
             b = self.objects[object_id].box
-            fp = b.footprint()
-            s = np.linalg.norm(np.roll(fp, -1, axis=0) - fp, axis=1)
-            out = self._sizes[object_id] = (float(max(s[0], s[1])), float(min(s[0], s[1])), float(b.height))
+            (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = b.rotation.tolist()
+            sx, sy, sz = b.size.tolist()
+            e0, e1 = math.hypot(sx * r00, sx * r10), math.hypot(sy * r01, sy * r11)
+            h = abs(r20) * sx + abs(r21) * sy + abs(r22) * sz
+            out = self._sizes[object_id] = (max(e0, e1), min(e0, e1), h)
         return out
 
     def front_cam(self, object_id: int) -> tuple[float, float, float]:
