@@ -328,6 +328,20 @@ def slot_candidates(t: Template, name: str, env: dict[str, Any], ctx: Context) -
     return []
 
 
+def search_plan(t: Template) -> list[tuple]:
+    """Per step, computed once per template: the step, the slots it binds, which of those are objects, how
+    often it is retried, and its compiled function."""
+    plan = t.__dict__.get("_search_plan")
+    if plan is None:
+        from refspatial_gen.qa.compiled import compiled
+
+        objslots = {n for n, s in t.slots.items() if s.type in ("object", "anchor")}
+        plan = t.__dict__["_search_plan"] = [
+            (st, st.binds, [k for k, nm in enumerate(st.binds) if nm in objslots], 3 if st.op == "mark" else 1, fn)
+            for st, fn in zip(t.steps, compiled(t))]
+    return plan
+
+
 class Search:
     """Depth-first binding of a template's slots with a work budget; yields complete instances.
 
@@ -339,12 +353,7 @@ class Search:
         self.t, self.ctx, self.budget = t, ctx, budget
         self.rejects: dict[str, int] = {}
         self._cands: dict[str, list] = {}
-        self._objslots = {n for n, s in t.slots.items() if s.type in ("object", "anchor")}
-        # per step, computed once: the slots it binds, which of them are objects, how often it is retried
-        from refspatial_gen.qa.compiled import compiled
-
-        self._plan = [(st, st.binds, [k for k, nm in enumerate(st.binds) if nm in self._objslots],
-                       3 if st.op == "mark" else 1, fn) for st, fn in zip(t.steps, compiled(t))]
+        self._plan = search_plan(t)
 
     def candidates(self, name: str) -> list:
         c = self._cands.get(name)
@@ -355,10 +364,11 @@ class Search:
             hit = memo.get(mk)
             if hit is None or hit[0] is not self.t:
                 hit = memo[mk] = (self.t, tuple(slot_candidates(self.t, name, {}, self.ctx)))
-            base = list(hit[1])
+            base = hit[1]
             if len(base) > 1:
-                order = self.ctx.rng.permutation(len(base))
-                base = [base[int(k)] for k in order]
+                base = [base[k] for k in self.ctx.rng.permutation(len(base)).tolist()]
+            else:
+                base = list(base)
             c = self._cands[name] = base
         return c
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections import OrderedDict
 
 import math
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -357,26 +357,63 @@ def _out_json(v: Any) -> Any:
     return v
 
 
+class _BuildPlan(NamedTuple):
+    """What _build needs from a template that does not depend on the instance (computed once)."""
+
+    relations: frozenset  # relation ids fixed by the program (literal relations, between, quantities...)
+    relation_slots: tuple  # relation slots: their bound value is a relation of the question
+    region_refs: tuple  # region slots of free_space steps: their kind is a relation
+    spot_refs: tuple  # spot slots of at / is_at steps: their kind (corner, edge) is a relation
+    program: tuple  # per step: (step, its args, implicit "in" (prev step name, "" = all, None = none),
+    #                 implicit "of" ((prev step name,) or None))
+
+
+def _build_plan(t: Template) -> _BuildPlan:
+    plan = t.__dict__.get("_build_plan")
+    if plan is not None:
+        return plan
+    rel = set(t.relations)
+    regions, spots = [], []
+    for st in t.steps:
+        if st.op == "between":
+            rel.add("between")
+        elif st.op == "free_space":
+            rel.add("free_space")
+            if "region" in st.args:
+                regions.append(st.args["region"].value)
+        elif st.op in ("at", "is_at"):
+            spots.append(st.args["spot"].value)
+        elif st.op == "measure":
+            rel.add(ops.QUANTITIES[st.args["quantity"].value][1])
+        elif st.op == "camera_turn":
+            rel.add("rotation_" + st.args["axis"].value)
+    program = []
+    prev_name = None
+    for st in t.steps:
+        default_in = None
+        if st.args.get("in") is None and ops.OPS[st.op].args.get("in") is not None:
+            default_in = prev_name or ""
+        default_of = (prev_name,) if st.op in ("locate", "measure") and "of" not in st.args else None
+        program.append((st, tuple(st.args.items()), default_in, default_of))
+        prev_name = st.name
+    plan = t.__dict__["_build_plan"] = _BuildPlan(
+        frozenset(rel), tuple(n for n, s in t.slots.items() if s.type == "relation"), tuple(regions), tuple(spots),
+        tuple(program))
+    return plan
+
+
 def _build(t: Template, env: dict, ans: Any, ctx: Context, rng: np.random.Generator, frame_ids: list[str],
            qa_id: str) -> QAPair:
     idx = ctx.idx
-    relations: set[str] = set(t.relations)
-    for name, s in t.slots.items():
-        if s.type == "relation" and name in env:
+    plan = _build_plan(t)
+    relations = set(plan.relations)
+    for name in plan.relation_slots:
+        if name in env:
             relations.add(env[name])
-    for st in t.steps:
-        if st.op == "between":
-            relations.add("between")
-        elif st.op == "free_space":
-            relations.add("free_space")
-            if "region" in st.args:
-                relations.add(env[st.args["region"].value].kind)
-        elif st.op in ("at", "is_at"):
-            relations.add(env[st.args["spot"].value][0])
-        elif st.op == "measure":
-            relations.add(ops.QUANTITIES[st.args["quantity"].value][1])
-        elif st.op == "camera_turn":
-            relations.add("rotation_" + st.args["axis"].value)
+    for name in plan.region_refs:
+        relations.add(env[name].kind)
+    for name in plan.spot_refs:
+        relations.add(env[name][0])
     # -------- answer and choices
     choices_text = ""
     targets: list[int] = []
@@ -470,16 +507,14 @@ def _build(t: Template, env: dict, ans: Any, ctx: Context, rng: np.random.Genera
     key_steps = _key_steps(t, env, ans, ctx)
     trace = fmt_trace(key_steps, answer) if t.n_steps >= 2 else ""
     program = []
-    prev_name = None
-    for st in t.steps:
-        args = {k: _ref_json(r, env, t, idx) for k, r in st.args.items()}
-        if st.args.get("in") is None and ops.OPS[st.op].args.get("in") is not None:
-            args["in"] = {"step": prev_name} if prev_name else "all"
-        if st.op in ("locate", "measure") and "of" not in st.args:
-            args["of"] = {"step": prev_name}
+    for st, items, default_in, default_of in plan.program:
+        args = {k: _ref_json(r, env, t, idx) for k, r in items}
+        if default_in is not None:
+            args["in"] = {"step": default_in} if default_in else "all"
+        if default_of is not None:
+            args["of"] = {"step": default_of[0]}
         program.append({"op": st.op, "as": st.name, "args": args, "out": _out_json(env[st.name]),
                         "weight": st.weight})
-        prev_name = st.name
     checks = list(CHECKS)
     if isinstance(ans, PointValue):
         checks.append("free_point" if ans.region is not None else "point_in_mask")

@@ -82,7 +82,8 @@ class SceneIndex:
         self.gindex = GraphIndex(graph, frame)
         self._fact_cache: dict[tuple, Fact | None] = {}
         self._rel_sets: dict[tuple, tuple[frozenset, frozenset, frozenset]] = {}
-        self._tabled: set[str] = set()  # relations whose whole table was tried (_fill_table)
+        self._cols: dict[str, list | None] = {}  # relation -> codes per anchor position (_table_cols)
+        self._by_rel: dict[str, list] | None = None
         self._codes: dict[str, np.ndarray | None] = {}
         self._pos = {x: k for k, x in enumerate(self.ids)}
         self._dist: list | None = None
@@ -132,8 +133,8 @@ class SceneIndex:
             n = len(self.ids)
             codes = np.full((n, n), 3, dtype=np.int8)
             vals = np.zeros((n, n))
-            for f in self.graph.facts:
-                if f.relation == base and len(f.args) == 2:
+            for f in self.facts_of(base):
+                if len(f.args) == 2:
                     a, b = int(f.args[0]), int(f.args[1])
                     if a in pos and b in pos and a != b:
                         h, i, j = f.holds, pos[a], pos[b]
@@ -265,10 +266,11 @@ class SceneIndex:
         key = (relation, anchor)
         entry = self._rel_sets.get(key)
         if entry is None:
-            if relation not in self._tabled and self._fill_table(relation):
-                entry = self._rel_sets.get(key)
-            if entry is None:
-                entry = self._rel_sets[key] = self._entry_of(relation, anchor, None)
+            cols = self._cols.get(relation, _MISS)
+            if cols is _MISS:
+                cols = self._cols[relation] = self._table_cols(relation)
+            pos = self._pos.get(anchor) if cols is not None else None
+            entry = self._rel_sets[key] = self._entry_of(relation, anchor, None if pos is None else cols[pos])
         return entry
 
     def _entry_of(self, relation: str, anchor: int, codes: list | None) -> tuple[frozenset, frozenset, frozenset]:
@@ -296,9 +298,9 @@ class SceneIndex:
                     true.append(x)
         return frozenset(true), frozenset(undecided), frozenset(missing)
 
-    def _fill_table(self, relation: str) -> bool:
-        """Every anchor's entry of a relation with a whole-matrix path; False when it has none."""
-        self._tabled.add(relation)
+    def _table_cols(self, relation: str) -> list | None:
+        """Per anchor position, the codes of relation(x, anchor) over self.ids, for relations with a
+        whole-matrix path (stored pairs, sparse stored relations, size comparisons); None otherwise."""
         mat = None
         pair = _PAIR_OF.get(relation)
         if pair is not None and (pair[0] != "above_world" or self.gindex.world):
@@ -311,12 +313,18 @@ class SceneIndex:
                 tab = self._derived_tables(d[0])
                 mat, swap = (None if tab is None else tab[0]), d[1]
         if mat is None:
-            return False
-        # entry for anchor j reads relation(x, anchor) = base(x, anchor), or base(anchor, x) when swapped
-        cols = mat.tolist() if swap else mat.T.tolist()
-        for j, anchor in enumerate(self.ids):
-            self._rel_sets[(relation, anchor)] = self._entry_of(relation, anchor, cols[j])
-        return True
+            return None
+        # relation(x, anchor) = base(x, anchor): column of the anchor; swapped: base(anchor, x), its row
+        return mat.tolist() if swap else mat.T.tolist()
+
+    def facts_of(self, relation: str) -> list:
+        """The graph's stored facts of one relation (grouped in one pass over all facts, on first use)."""
+        if self._by_rel is None:
+            by: dict[str, list] = {}
+            for f in self.graph.facts:
+                by.setdefault(f.relation, []).append(f)
+            self._by_rel = by
+        return self._by_rel.get(relation, [])
 
     def _sparse_codes(self, relation: str) -> np.ndarray | None:
         """codes[i, j] of a sparse stored relation (or outside = not inside) with GraphIndex._lookup's rule for
@@ -343,8 +351,8 @@ class SceneIndex:
                     out = np.zeros((n, n), dtype=np.int8)
                     out[np.array(nofront, bool), :] = 2
                 direct = []
-                for f in self.graph.facts:
-                    if f.relation == relation and len(f.args) == 2:
+                for f in self.facts_of(relation):
+                    if len(f.args) == 2:
                         a, b = f.args
                         if a in pos and b in pos and a != b:
                             h = f.holds

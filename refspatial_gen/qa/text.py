@@ -111,17 +111,31 @@ def _parse_brace(text: str, pos: int) -> tuple[Union[Slot, Alt], int]:
     return Alt(tuple(options)), pos
 
 
-def placeholders(seq: Seq) -> set[str]:
-    """Every placeholder name a compiled variant can use."""
+_PLACEHOLDERS: dict[int, tuple["Seq", frozenset]] = {}
+
+
+def placeholders(seq: Seq) -> frozenset[str]:
+    """Every placeholder name a compiled variant can use (computed once per compiled variant)."""
+    hit = _PLACEHOLDERS.get(id(seq))
+    if hit is not None and hit[0] is seq:
+        return hit[1]
+    out = frozenset(_placeholders(seq))
+    if len(_PLACEHOLDERS) > 100_000:
+        _PLACEHOLDERS.clear()
+    _PLACEHOLDERS[id(seq)] = (seq, out)
+    return out
+
+
+def _placeholders(seq: Seq) -> set[str]:
     out: set[str] = set()
     for p in seq.parts:
         if isinstance(p, Slot):
             out.add(p.name)
         elif isinstance(p, Alt):
             for o in p.options:
-                out |= placeholders(o)
+                out |= _placeholders(o)
         elif isinstance(p, Opt):
-            out |= placeholders(p.body)
+            out |= _placeholders(p.body)
     return out
 
 
@@ -148,8 +162,17 @@ def _render(seq: Seq, values, rng, p_opt, out: list[str]) -> None:
 
 _SPACES = re.compile(r"\s+")
 _SPACE_PUNCT = re.compile(r"\s+([,.?!;:])")
+# anything the two substitutions would change: a whitespace run longer than one character, whitespace other
+# than a plain space, or whitespace before punctuation (most rendered texts have none: skip the rewrites)
+_UNTIDY = re.compile(r"\s\s|[^\S ]|\s[,.?!;:]")
+
+
+def _group1(m: re.Match) -> str:
+    return m.group(1)
 
 
 def tidy(s: str, sentence: bool = True) -> str:
-    s = _SPACE_PUNCT.sub(r"\1", _SPACES.sub(" ", s)).strip()
+    if _UNTIDY.search(s) is not None:
+        s = _SPACE_PUNCT.sub(_group1, _SPACES.sub(" ", s))
+    s = s.strip()
     return s[:1].upper() + s[1:] if s and sentence else s
