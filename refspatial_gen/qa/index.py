@@ -84,7 +84,7 @@ class SceneIndex:
         self._rel_sets: dict[tuple, tuple[frozenset, frozenset, frozenset]] = {}
         self._cols: dict[str, list | None] = {}  # relation -> codes per anchor position (_table_cols)
         self._by_rel: dict[str, list] | None = None
-        self._codes: dict[str, np.ndarray | None] = {}
+        self._codes: dict[str, list | None] = {}
         self._pos = {x: k for k, x in enumerate(self.ids)}
         self._dist: list | None = None
         self._derived: dict[str, tuple | None] = {}
@@ -100,8 +100,8 @@ class SceneIndex:
         self.all = frozenset(self.ids)
 
     # ------------------------------------------------------------------ facts
-    def _derived_tables(self, base: str) -> tuple[np.ndarray, list, list] | None:
-        """(codes, holds rows, value rows) of a size comparison over self.ids, with the graph's own decision
+    def _derived_tables(self, base: str) -> tuple[list, list, list] | None:
+        """(code rows, holds rows, value rows) of a size comparison over self.ids, with the graph's own decision
         function on the stored node attributes (what GraphIndex derives one pair at a time; a test pins the
         equality). None without gravity or thresholds."""
         if base not in self._derived:
@@ -117,31 +117,33 @@ class SceneIndex:
                 codes = np.asarray(codes).astype(int)
                 ours = np.where(codes == UNDECIDED, 2, np.where(codes == TRUE, 1, 0)).astype(np.int8)
                 np.fill_diagonal(ours, 3)
-                hs = [[_HOLDS[c] for c in row] for row in ours.tolist()]
+                rows = ours.tolist()
+                hs = [[_HOLDS[c] for c in row] for row in rows]
                 vs = np.asarray(v, dtype=float).tolist()  # python floats: same values, no per-element numpy
-                out = (ours, hs, vs)
+                out = (rows, hs, vs)
             self._derived[base] = out
         return self._derived[base]
 
-    def _pair_tables(self, base: str) -> tuple[np.ndarray, list, list]:
-        """(codes, code rows, value rows) of a stored antisymmetric relation in both directions: R(b, a) = not
-        R(a, b), value negated (the storage rule of graph.query; a test pins the equality with GraphIndex).
+    def _pair_tables(self, base: str) -> tuple[list, list]:
+        """(code rows, value rows) of a stored antisymmetric relation in both directions over self.ids: R(b, a) =
+        not R(a, b), value negated (the storage rule of graph.query; a test pins the equality with GraphIndex).
         Code 3 = not stored."""
         tab = self._pairs.get(base)
         if tab is None:
             pos = self._pos
             n = len(self.ids)
-            codes = np.full((n, n), 3, dtype=np.int8)
-            vals = np.zeros((n, n))
+            codes = [[3] * n for _ in range(n)]
+            vals = [[0.0] * n for _ in range(n)]
             for f in self.facts_of(base):
                 if len(f.args) == 2:
                     a, b = int(f.args[0]), int(f.args[1])
                     if a in pos and b in pos and a != b:
                         h, i, j = f.holds, pos[a], pos[b]
-                        codes[i, j] = 2 if h is None else int(bool(h))
-                        codes[j, i] = 2 if h is None else int(not h)
-                        vals[i, j], vals[j, i] = float(f.value), -float(f.value)
-            tab = self._pairs[base] = (codes, codes.tolist(), vals.tolist())
+                        codes[i][j] = 2 if h is None else int(bool(h))
+                        codes[j][i] = 2 if h is None else int(not h)
+                        v = float(f.value)
+                        vals[i][j], vals[j][i] = v, -v
+            tab = self._pairs[base] = (codes, vals)
         return tab
 
     def fact(self, relation: str, args: tuple) -> Fact | None:
@@ -152,7 +154,7 @@ class SceneIndex:
         pair = _PAIR_OF.get(relation)
         pos = self._pos
         if pair is not None and (pair[0] != "above_world" or self.gindex.world) and len(args) == 2:
-            _, cl, vl = self._pair_tables(pair[0])
+            cl, vl = self._pair_tables(pair[0])
             a, b = args[::-1] if pair[1] else args
             i, j = pos.get(a), pos.get(b)
             if i is not None and j is not None and cl[i][j] != 3:
@@ -315,7 +317,7 @@ class SceneIndex:
         if mat is None:
             return None
         # relation(x, anchor) = base(x, anchor): column of the anchor; swapped: base(anchor, x), its row
-        return mat.tolist() if swap else mat.T.tolist()
+        return mat if swap else [list(col) for col in zip(*mat)]
 
     def facts_of(self, relation: str) -> list:
         """The graph's stored facts of one relation (grouped in one pass over all facts, on first use)."""
@@ -326,30 +328,27 @@ class SceneIndex:
             self._by_rel = by
         return self._by_rel.get(relation, [])
 
-    def _sparse_codes(self, relation: str) -> np.ndarray | None:
-        """codes[i, j] of a sparse stored relation (or outside = not inside) with GraphIndex._lookup's rule for
-        absent instances: inside False; facing/facing_away False, or undecided when A has no front;
+    def _sparse_codes(self, relation: str) -> list | None:
+        """Code rows of a sparse stored relation (or outside = not inside) over self.ids, with GraphIndex._lookup's
+        rule for absent instances: inside False; facing/facing_away False, or undecided when A has no front;
         far_from/touching/next_to stored in either direction, else False when the pair has a distance."""
         if relation in self._codes:
             return self._codes[relation]
         out = None
         if self.gindex.world:
+            n, pos = len(self.ids), self._pos
             if relation == "outside":
-                inside = self._sparse_codes("inside")
-                out = inside.copy()
-                out[inside == 1], out[inside == 0] = 0, 1
+                flip = (1, 0, 2, 3)
+                out = [[flip[c] for c in row] for row in self._sparse_codes("inside")]
             else:
-                n, pos = len(self.ids), self._pos
                 if relation == "inside":
-                    out = np.zeros((n, n), dtype=np.int8)
+                    out = [[0] * n for _ in range(n)]
                 elif relation in _SYMMETRIC:
                     if self._dist is None:
                         self._dist = self.gindex._distance_matrix().tolist()
-                    out = np.where(np.isinf(np.array(self._dist, float)), 3, 0).astype(np.int8)
+                    out = [[3 if d == _INF else 0 for d in row] for row in self._dist]
                 else:  # facing, facing_away
-                    nofront = [self.nodes[i].attributes.get("front") is None for i in self.ids]
-                    out = np.zeros((n, n), dtype=np.int8)
-                    out[np.array(nofront, bool), :] = 2
+                    out = [[2 if self.nodes[i].attributes.get("front") is None else 0] * n for i in self.ids]
                 direct = []
                 for f in self.facts_of(relation):
                     if len(f.args) == 2:
@@ -359,9 +358,9 @@ class SceneIndex:
                             direct.append((pos[a], pos[b], 2 if h is None else int(bool(h))))
                 if relation in _SYMMETRIC:  # a reversed stored instance counts unless the pair is stored as asked
                     for i, j, c in direct:
-                        out[j, i] = c
+                        out[j][i] = c
                 for i, j, c in direct:
-                    out[i, j] = c
+                    out[i][j] = c
         self._codes[relation] = out
         return out
 
