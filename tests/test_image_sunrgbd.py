@@ -21,12 +21,18 @@ def test_sunrgbd_lifting_vs_ground_truth(shared_data):
         print(f"  {rel}: {v['agree']}/{v['decided_both']}")
     for o in r["per_object"]:
         print("  ", o)
-    assert r["objects"] == 8  # every annotated object was lifted
+    # 7 of the 8 annotated objects are lifted; the lamp of 000001 (white shade, thin stem: ~180 of its
+    # 5300 box pixels have depth on it) is dropped with a reason instead of being lifted from the wall
+    assert r["objects"] == 7
+    dropped = [d for f in r["frames"].values() for d in f.meta["dropped_object_list"]]
+    assert [(d["category"], d["reason"]) for d in dropped] == [("lamp", "too_small")]
     assert all(g < 5.0 for g in r["gravity_error_deg"])  # RANSAC plane vs SUN's Rtilt
-    assert r["relation_pairs"] >= 60
-    # measured 87.7% (target 90%); 71.6% would mean the lifting regressed
-    assert r["relation_agreement"] >= 0.85
-    assert r["median_centre_error_cm"] < 75.0
+    assert r["relation_pairs"] >= 50
+    # measured 96.4% (53 of 55; target 90%); before depth layering + amodal completion: 87.6%
+    assert r["relation_agreement"] >= 0.93
+    assert r["median_centre_error_cm"] < 35.0  # measured 25.0 cm (was 58.8 cm)
+    by_cat = {(o["image"], o["category"]): o["error_cm"] for o in r["per_object"]}
+    assert by_cat[("000001", "night_stand")] < 50.0  # its box is mostly the bed in front (was 225 cm)
     for f in r["frames"].values():
         f.validate()
         assert f.camera.gravity_known

@@ -9,6 +9,8 @@ cluster -> yaw from the minimum-area rectangle of the footprint, z from robust p
 optional snapping of the bottom to a support plane just below -> optional amodal completion: a single
 view sees only the front surface, so the extent along the viewing direction is grown (away from the
 camera) to min(width across, height), a documented shape prior.
+Box annotations with measured depth arrive `preselected` (their pixels cut by boxseg.py): plane removal,
+component choice and DBSCAN are skipped, and source.py completes them with amodal.py.
 """
 
 from __future__ import annotations
@@ -112,15 +114,17 @@ def depth_components(zc: np.ndarray, rel_jump: float = 0.03, abs_jump: float = 0
 
 def lift_object(xs: np.ndarray, ys: np.ndarray, zz: np.ndarray, cam, params: LiftParams,
                 support_z: list[float] | None = None, walls: list[tuple[np.ndarray, float]] | None = None,
-                weights: np.ndarray | None = None) -> Lifted | str:
+                weights: np.ndarray | None = None, preselected: bool = False) -> Lifted | str:
     """All valid-depth pixels of one object (x, y, z-depth) -> Lifted, or a drop reason string.
 
+    `preselected`: the pixels are already the object's surfaces (box annotations cut by
+    boxseg.assign_boxes): no plane removal, and every depth component is kept.
     `keep_pixels` of the result indexes these pixels (the ones on the kept surface)."""
     world = cam.cam_to_world(cam.backproject(xs + 0.5, ys + 0.5, zz))  # pixel centres
     n_in = len(zz)
     keep = np.ones(n_in, bool)
     notes: dict = {}
-    if support_z:
+    if support_z and not preselected:
         on_plane = np.zeros(n_in, bool)
         for z in support_z:
             # only a plane at the object's bottom (floor under a chair, bed top under a pillow); a plane
@@ -130,7 +134,7 @@ def lift_object(xs: np.ndarray, ys: np.ndarray, zz: np.ndarray, cam, params: Lif
         if 0 < on_plane.sum() < 0.6 * n_in:  # a majority on the plane means the object *is* the surface
             keep &= ~on_plane
             notes["plane_points_removed"] = int(on_plane.sum())
-    for n, d in walls or []:
+    for n, d in ([] if preselected else walls or []):
         on_wall = keep & (np.abs(world @ n + d) < params.plane_band)
         if 0 < on_wall.sum() < 0.5 * keep.sum():
             keep &= ~on_wall
@@ -147,7 +151,7 @@ def lift_object(xs: np.ndarray, ys: np.ndarray, zz: np.ndarray, cam, params: Lif
     w = np.ones(n_in) if weights is None else np.asarray(weights, float)
     score = np.bincount(lab, weights=w)
     score[0] = 0
-    comp = lab == int(np.argmax(score))
+    comp = lab > 0 if preselected else lab == int(np.argmax(score))
     notes["components"] = int(np.count_nonzero(np.bincount(lab)[1:]))
     idx_all = np.flatnonzero(comp)
     if len(idx_all) < params.min_points:
@@ -158,7 +162,7 @@ def lift_object(xs: np.ndarray, ys: np.ndarray, zz: np.ndarray, cam, params: Lif
         sub = idx_all
         step = 1
     pix_scale = float(np.median(zz[sub])) / cam.fx * step
-    out = lift_points(world[sub], pix_scale, params)
+    out = lift_points(world[sub], pix_scale, params, cluster=not preselected)
     if isinstance(out, str):
         return out
     out.notes = {**notes, **out.notes}
@@ -196,10 +200,12 @@ def snap_to_support(box: Box3D, support_z: list[float], params: LiftParams) -> t
     return Box3D(c, s, box.rotation), round(float(box.bottom_z - z), 4)
 
 
-def lift_points(world: np.ndarray, pixel_scale: float, params: LiftParams) -> Lifted | str:
+def lift_points(world: np.ndarray, pixel_scale: float, params: LiftParams, cluster: bool = True) -> Lifted | str:
     """Subsampled world points of one surface -> outlier removal, largest DBSCAN cluster, upright box.
 
-    `pixel_scale` is metres between neighbouring points at the median depth (DBSCAN's eps is 3x it)."""
+    `pixel_scale` is metres between neighbouring points at the median depth (DBSCAN's eps is 3x it).
+    `cluster=False`: the points were segmented already (box layering); only outliers are removed (a
+    subsampled surface seen at a grazing angle is sparser than eps and DBSCAN would cut it up)."""
     n_in = len(world)
     idx = np.arange(n_in)
     if n_in < params.min_points:
@@ -212,6 +218,10 @@ def lift_points(world: np.ndarray, pixel_scale: float, params: LiftParams) -> Li
         pc = pc.select_by_index(ind.tolist())
     if len(idx) < params.min_points:
         return "low_valid_depth"
+    if not cluster:
+        keep_px = np.zeros(n_in, bool)
+        keep_px[idx] = True
+        return Lifted(fit_upright_box(world[idx]), int(len(idx)), float(len(idx) / n_in), keep_px, {"clusters": 0})
     eps = float(max(0.03, 3.0 * pixel_scale))
     labels = np.asarray(pc.cluster_dbscan(eps=eps, min_points=params.dbscan_min_points, print_progress=False))
     if labels.size == 0 or labels.max() < 0:
