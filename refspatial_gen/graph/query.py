@@ -18,8 +18,8 @@ from refspatial_gen.core.model import FreeSpaceRegion, Node, RelationFact, Scene
 from refspatial_gen.graph.constants import Thresholds
 from refspatial_gen.graph.relations import REGISTRY
 from refspatial_gen.graph.relations.base import decide
-from refspatial_gen.graph.relations.common import holds_of
-from refspatial_gen.graph.relations.containment import between_table
+from refspatial_gen.graph.relations.common import TRUE, UNDECIDED, holds_of
+from refspatial_gen.graph.relations.containment import between_arrays, between_table
 from refspatial_gen.graph.relations.orientation import SECTORS, angle_between, bearings, sector_codes
 from refspatial_gen.graph.relations.sizes import DERIVED, compare
 
@@ -200,18 +200,25 @@ class GraphIndex:
 
     def between_rows(self) -> dict[tuple[int, int], tuple[frozenset, frozenset]]:
         """{(b, c) ids with b < c: (ids A with between(A, b, c) true, ids undecided)}; every other A is False.
-        The same table and rule as between_code, grouped per anchor pair for set-at-once lookups."""
+        The same arrays and rule as between_code, grouped per anchor pair for set-at-once lookups."""
         if self._between_rows is None:
-            rows: dict[tuple[int, int], tuple[set, set]] = {}
-            ids = self.ids
-            for (i, j, k), (code, _t) in self._between_table().items():
-                h = holds_of(code)
-                if h is False:
-                    continue
-                row = rows.setdefault((ids[j], ids[k]), (set(), set()))
-                row[0 if h else 1].add(ids[i])
-            self._between_rows = {key: (frozenset(t), frozenset(u)) for key, (t, u) in rows.items()}
+            rows: dict[tuple[int, int], tuple[frozenset, frozenset]] = {}
+            arr = self._between_arrays()
+            if arr is not None:
+                ids = self.ids
+                B, C, cand, code, _t = arr
+                for b, c, cr, kr in zip(B.tolist(), C.tolist(), cand.tolist(), code.tolist()):
+                    t = [ids[a] for a, (ok, k) in enumerate(zip(cr, kr)) if ok and k == TRUE]
+                    u = [ids[a] for a, (ok, k) in enumerate(zip(cr, kr)) if ok and k == UNDECIDED]
+                    if t or u:
+                        rows[(ids[b], ids[c])] = (frozenset(t), frozenset(u))
+            self._between_rows = rows
         return self._between_rows
+
+    def _between_arrays(self):
+        xy = np.array([self.nodes[i].attributes["center"][:2] for i in self.ids], float).reshape(-1, 2)
+        cats = [self.nodes[i].category for i in self.ids]
+        return between_arrays(xy, np.array(self.ids), cats, self._distance_matrix(), self.th)
 
     def between_code(self, a: int, b: int, c: int) -> tuple[bool | None, float]:
         """(holds, t) of between(a, b, c) for three distinct known ids, without building a RelationFact

@@ -33,22 +33,22 @@ def _inside(geom):
     return cached(geom, "contain:inside", f)
 
 
-def between_table(xy: np.ndarray, ids: np.ndarray, categories: list[str], dist: np.ndarray, th) -> dict:
-    """{(a, b, c) positions: (code, t)} for anchors b, c with ids[b] < ids[c]; False instances omitted.
-    Shared by the geometry and the query index (which passes stored node centres and distances). All anchor
-    pairs at once (the QA index builds this table for every sample)."""
+def between_arrays(xy: np.ndarray, ids: np.ndarray, categories: list[str], dist: np.ndarray, th):
+    """Every anchor pair at once: (B, C, cand, code, t) with anchor positions B[p], C[p] (ids[B] < ids[C]),
+    cand[p, a] = between(a, B[p], C[p]) is not False, code[p, a] its TRUE/UNDECIDED code and t[p, a] the
+    position along the segment. None when no pair spans a region."""
     ids = np.asarray(ids)
     n = len(ids)
     if n < 3:
-        return {}
+        return None
     xy = np.asarray(xy, float).reshape(n, 2)
-    B, C = np.nonzero(ids[:, None] < ids[None, :])  # row-major: the order of the nested (b, c) loops
+    B, C = np.nonzero(ids[:, None] < ids[None, :])  # row-major: the order of nested (b, c) loops
     seg = xy[C] - xy[B]
     L = np.sqrt(seg[:, 0] * seg[:, 0] + seg[:, 1] * seg[:, 1])
     keep = L >= MIN_BETWEEN_SPAN
     B, C, seg, L = B[keep], C[keep], seg[keep], L[keep]
     if not len(B):
-        return {}
+        return None
     u = seg / L[:, None]
     rel = xy[None, :, :] - xy[B][:, None, :]  # rel[p, a] = A - B of anchor pair p
     t = (rel[..., 0] * u[:, None, 0] + rel[..., 1] * u[:, None, 1]) / L[:, None]
@@ -67,6 +67,16 @@ def between_table(xy: np.ndarray, ids: np.ndarray, categories: list[str], dist: 
     same = (cat[:, None] == cat[None, :]) & ~np.eye(n, dtype=bool)
     ambiguous = (cand.astype(np.int64) @ same.astype(np.int64)) > 0
     code = np.where(yes & clear & ~ambiguous, TRUE, UNDECIDED)
+    return B, C, cand, code, t
+
+
+def between_table(xy: np.ndarray, ids: np.ndarray, categories: list[str], dist: np.ndarray, th) -> dict:
+    """{(a, b, c) positions: (code, t)} for anchors b, c with ids[b] < ids[c]; False instances omitted.
+    Shared by the geometry and the query index (which passes stored node centres and distances)."""
+    arr = between_arrays(xy, ids, categories, dist, th)
+    if arr is None:
+        return {}
+    B, C, cand, code, t = arr
     P, A = np.nonzero(cand)
     Bl, Cl = B.tolist(), C.tolist()
     return {(a, Bl[p], Cl[p]): (c, tv) for p, a, c, tv in
