@@ -242,3 +242,32 @@ def test_index_facts_equal_the_graph_query_index(scenes):
                 assert (mine is None) == (ref is None)
                 if ref is not None:
                     assert mine.holds == ref.holds and abs(mine.value - ref.value) < 1e-12, (rel, a, b)
+
+
+def test_key_steps_always_name_their_object(scenes, cfg):
+    """Objects without a unique phrase (half the nodes here) may be described in a question, but a key step can
+    only name a graph phrase, a drawn mark, the free space, or (final position only) the answer target: the
+    generator rejects anything else, as `verify` would."""
+    from refspatial_gen.core.model import KeyStep, SceneGraph
+    from refspatial_gen.qa.generate import _check_key_phrases
+
+    emitted = 0
+    for k, (f, g) in enumerate(scenes):
+        g2 = SceneGraph.from_json(g.to_json())
+        for n in g2.nodes[::2]:
+            n.phrases = []
+        idx = scene_index(f, g2)
+        for seed in range(4):
+            for qa in generate_qa([f], [g2], np.random.default_rng(1000 * k + seed), cfg):
+                emitted += 1
+                for ks in qa.key_steps[:-1]:
+                    assert ks.phrase in idx.phrase_set or ks.phrase.startswith(("the object marked", "the free space"))
+    assert emitted > 100
+    idx = scene_index(*scenes[0])
+    named = next(iter(idx.phrase_set))
+    ok = [KeyStep("Position", named, [0.5, 0.5]), KeyStep("Position", "the target cup", [0.5, 0.5])]
+    _check_key_phrases(ok, {}, [1], idx)  # an unnamed final answer target is fine
+    with pytest.raises(Reject):
+        _check_key_phrases(ok[::-1], {}, [1], idx)  # an unnamed object on the way is not
+    with pytest.raises(Reject):
+        _check_key_phrases([KeyStep("Size", "the target cup", [0.1, 0.1, 0.1])], {}, [1], idx)

@@ -505,6 +505,7 @@ def _build(t: Template, env: dict, ans: Any, ctx: Context, rng: np.random.Genera
         question = f"{question} {rend.instruction}"
     # -------- key steps and trace
     key_steps = _key_steps(t, env, ans, ctx)
+    _check_key_phrases(key_steps, struct, targets, idx)
     trace = fmt_trace(key_steps, answer) if t.n_steps >= 2 else ""
     program = []
     for st, items, default_in, default_of in plan.program:
@@ -522,6 +523,22 @@ def _build(t: Template, env: dict, ans: Any, ctx: Context, rng: np.random.Genera
                   answer_struct=struct, relations=sorted(relations), steps=t.n_steps, frame_ids=list(frame_ids),
                   image_size=(idx.W, idx.H), program=program, trace=trace, key_steps=key_steps, checks=checks,
                   targets=targets)
+
+
+def _check_key_phrases(key_steps: list[KeyStep], struct: dict, targets: list[int], idx: SceneIndex) -> None:
+    """Every key step must name its object so a reward function (and `verify`) can find it: a graph phrase, a
+    drawn mark, the free space, or, for the final position only, the answer target. An object with no unique
+    phrase looked at on the way (e.g. the bottle a `between` step described) cannot be named: Reject."""
+    names = idx.phrase_set
+    marks = {f"the object marked ({m['label']})" for m in struct.get("marks") or []}
+    last = key_steps[-1] if key_steps else None
+    for ks in key_steps:
+        ph = ks.phrase
+        if ph in names or ph in marks or (ks.type == "Position" and ph.startswith("the free space")):
+            continue
+        if ks is last and ks.type == "Position" and targets:
+            continue
+        raise Reject("unnamed_key_step")
 
 
 def _key_steps(t: Template, env: dict, ans: Any, ctx: Context) -> list[KeyStep]:

@@ -62,6 +62,7 @@ class SceneIndex:
         self.ids: tuple[int, ...] = tuple(sorted(self.nodes))
         self.objects = {o.id: o for o in frame.objects}
         self.phrase: dict[int, str] = {i: n.phrases[0] for i, n in self.nodes.items() if n.phrases}
+        self.phrase_set = frozenset(p for n in graph.nodes for p in n.phrases)  # every phrase that names a node
         self.referable: tuple[int, ...] = tuple(i for i in self.ids if i in self.phrase and self.nodes[i].point is not None)
         self.category = {i: n.category for i, n in self.nodes.items()}
         self.color = {i: (n.attributes.get("color") or n.attributes.get("colour")) for i, n in self.nodes.items()}
