@@ -27,11 +27,15 @@ def _name(ref: Ref | None) -> str | None:
 
 
 def _generic(st: Step) -> StepFn:
-    from refspatial_gen.qa.executor import run_step
+    from refspatial_gen.qa.executor import _OPS
+
+    impl = _OPS.get(st.op)
+    if impl is None:
+        raise ValueError(f"unknown op {st.op}")
 
     def fn(env: dict, prev: Any, ctx: Any) -> Any:
         try:
-            return run_step(st, env, prev, ctx)
+            return impl(st, env, prev, ctx)
         except Reject as r:
             return r
     return fn

@@ -132,152 +132,219 @@ def _winner(cands, rel: str, anchor: int | None, idx: SceneIndex) -> int:
     return best
 
 
-def run_step(st: Step, env: dict[str, Any], prev: Any, ctx: Context) -> Any:
-    """Execute one step; raise Reject when the step has no well-defined result."""
+def _op_filter(st: Step, env: dict[str, Any], prev: Any, ctx: Context) -> Any:
     idx = ctx.idx
     a = st.args
-    op = st.op
-    if op == "filter":
-        s = _set_in(st, env, prev, idx)
-        if "category" in a:
-            s = s & idx.by_category.get(resolve(a["category"], env, prev, idx), frozenset())
-        if "color" in a:
-            s = s & idx.by_color.get(resolve(a["color"], env, prev, idx), frozenset())
-        if "on" in a:
-            sid = resolve(a["on"], env, prev, idx)
-            s = frozenset(i for i in s if sid in idx.on.get(i, ()))
-        if not s:
-            raise Reject("empty")
-        if ctx.prune and (len(s) < st.min_out or (st.exact_one and len(s) != 1)):
-            raise Reject("bound")
-        return s
-    if op == "relate":
-        s = _set_in(st, env, prev, idx)
-        r, r2 = a["relation"], a["anchor"]
-        # slot/step references inline (the hottest op; resolve() gives the same values)
-        rel = env[r.value] if r.kind == "slot" or r.kind == "step" else resolve(r, env, prev, idx)
-        anchor = env[r2.value] if r2.kind == "slot" or r2.kind == "step" else resolve(r2, env, prev, idx)
-        out = idx.narrow(rel, anchor, s)
-        return _bounded(st, s, out, ctx)
-    if op == "at":
-        s = _set_in(st, env, prev, idx)
-        kind, sid, label = resolve(a["spot"], env, prev, idx)
-        out = frozenset(x for x in s if idx.holds(kind, (x, sid, label)))
-        return _bounded(st, s, out, ctx)
-    if op == "is_at":
-        kind, sid, label = resolve(a["spot"], env, prev, idx)
-        return idx.holds(kind, (resolve(a["a"], env, prev, idx), sid, label))
-    if op == "between":
-        s = _set_in(st, env, prev, idx)
+    s = _set_in(st, env, prev, idx)
+    if "category" in a:
+        s = s & idx.by_category.get(resolve(a["category"], env, prev, idx), frozenset())
+    if "color" in a:
+        s = s & idx.by_color.get(resolve(a["color"], env, prev, idx), frozenset())
+    if "on" in a:
+        sid = resolve(a["on"], env, prev, idx)
+        s = frozenset(i for i in s if sid in idx.on.get(i, ()))
+    if not s:
+        raise Reject("empty")
+    if ctx.prune and (len(s) < st.min_out or (st.exact_one and len(s) != 1)):
+        raise Reject("bound")
+    return s
+
+
+def _op_relate(st: Step, env: dict[str, Any], prev: Any, ctx: Context) -> Any:
+    idx = ctx.idx
+    a = st.args
+    s = _set_in(st, env, prev, idx)
+    r, r2 = a["relation"], a["anchor"]
+    # slot/step references inline (the hottest op; resolve() gives the same values)
+    rel = env[r.value] if r.kind == "slot" or r.kind == "step" else resolve(r, env, prev, idx)
+    anchor = env[r2.value] if r2.kind == "slot" or r2.kind == "step" else resolve(r2, env, prev, idx)
+    out = idx.narrow(rel, anchor, s)
+    return _bounded(st, s, out, ctx)
+
+
+def _op_at(st: Step, env: dict[str, Any], prev: Any, ctx: Context) -> Any:
+    idx = ctx.idx
+    a = st.args
+    s = _set_in(st, env, prev, idx)
+    kind, sid, label = resolve(a["spot"], env, prev, idx)
+    out = frozenset(x for x in s if idx.holds(kind, (x, sid, label)))
+    return _bounded(st, s, out, ctx)
+
+
+def _op_is_at(st: Step, env: dict[str, Any], prev: Any, ctx: Context) -> Any:
+    idx = ctx.idx
+    a = st.args
+    kind, sid, label = resolve(a["spot"], env, prev, idx)
+    return idx.holds(kind, (resolve(a["a"], env, prev, idx), sid, label))
+
+
+def _op_between(st: Step, env: dict[str, Any], prev: Any, ctx: Context) -> Any:
+    idx = ctx.idx
+    a = st.args
+    s = _set_in(st, env, prev, idx)
+    b, c = resolve(a["anchors"], env, prev, idx)
+    return _bounded(st, s, idx.between(b, c, s), ctx)
+
+
+def _op_superlative(st: Step, env: dict[str, Any], prev: Any, ctx: Context) -> Any:
+    idx = ctx.idx
+    a = st.args
+    s = _set_in(st, env, prev, idx)
+    rel = resolve(a["relation"], env, prev, idx)
+    anchor = resolve(a["anchor"], env, prev, idx) if "anchor" in a else None
+    if rel in ops.ANCHORED and anchor is None:
+        raise Reject("no_anchor")
+    return _winner([x for x in s if x != anchor], rel, anchor, idx)
+
+
+def _op_ordinal(st: Step, env: dict[str, Any], prev: Any, ctx: Context) -> Any:
+    idx = ctx.idx
+    a = st.args
+    s = sorted(_set_in(st, env, prev, idx))
+    rel = resolve(a["relation"], env, prev, idx)
+    rank = resolve(a["rank"], env, prev, idx)
+    n = len(s)
+    if rank > n or n < 2:
+        raise Reject("rank")
+    wins = {x: 0 for x in s}
+    for i, x in enumerate(s):
+        for y in s[i + 1:]:
+            if idx.holds(rel, (x, y)):
+                wins[x] += 1
+            else:
+                wins[y] += 1
+    for x in s:
+        if wins[x] == n - rank:
+            return x
+    raise Reject("rank")
+
+
+def _op_locate(st: Step, env: dict[str, Any], prev: Any, ctx: Context) -> Any:
+    idx = ctx.idx
+    a = st.args
+    obj = _single(resolve(a.get("of"), env, prev, idx))
+    return PointValue(idx.point(obj), obj)
+
+
+def _op_free_space(st: Step, env: dict[str, Any], prev: Any, ctx: Context) -> Any:
+    idx = ctx.idx
+    a = st.args
+    if "region" in a:
+        r = resolve(a["region"], env, prev, idx)
+    elif "anchors" in a:
         b, c = resolve(a["anchors"], env, prev, idx)
-        return _bounded(st, s, idx.between(b, c, s), ctx)
-    if op == "superlative":
-        s = _set_in(st, env, prev, idx)
-        rel = resolve(a["relation"], env, prev, idx)
-        anchor = resolve(a["anchor"], env, prev, idx) if "anchor" in a else None
+        r = idx.regions.get(("between", (b, c))) or idx.regions.get(("between", (c, b)))
+    else:
+        d = resolve(a["direction"], env, prev, idx)
+        r = idx.regions.get((d, (resolve(a["anchor"], env, prev, idx),)))
+    if r is None:
+        raise Reject("no_free_space")
+    return PointValue((float(r.point[0]), float(r.point[1])), None, r)
+
+
+def _op_compare(st: Step, env: dict[str, Any], prev: Any, ctx: Context) -> Any:
+    idx = ctx.idx
+    a = st.args
+    rel = resolve(a["relation"], env, prev, idx)
+    x, y = _single(resolve(a["a"], env, prev, idx)), _single(resolve(a["b"], env, prev, idx))
+    anchor = resolve(a["anchor"], env, prev, idx) if "anchor" in a else None
+    if x == y or (anchor is not None and anchor in (x, y)):
+        raise Reject("same_object")
+    if rel in ops.ANCHORED:
+        if anchor is None:
+            raise Reject("no_anchor")
+        return idx.holds(rel, (x, y, anchor))
+    return idx.holds(rel, (x, y))
+
+
+def _op_all(st: Step, env: dict[str, Any], prev: Any, ctx: Context) -> Any:
+    idx = ctx.idx
+    a = st.args
+    return all(resolve(a["of"], env, prev, idx))
+
+
+def _op_measure(st: Step, env: dict[str, Any], prev: Any, ctx: Context) -> Any:
+    idx = ctx.idx
+    a = st.args
+    q = a["quantity"].value
+    x = _single(resolve(a.get("of"), env, prev, idx))
+    if q == "distance" or q == "angle":
+        y = resolve(a["to"], env, prev, idx)
+        if x == y:
+            raise Reject("same_object")
+        if q == "angle" and not (idx.has_front.get(x) and idx.has_front.get(y)):
+            raise Reject("no_front")
+        idx.holds(q, (x, y))  # an undecided quantity (unknown front...) is not asked
+        return NumberValue(idx.value(q, (x, y)), q)
+    if q == "depth" or q.startswith("rotation"):
+        idx.holds(q, (x,))  # depth of an object spanning a long range, a turn inside the margin
+        return NumberValue(idx.value(q, (x,)), q)
+    w, _, h = idx.size(x)
+    return NumberValue(h if q == "height" else w, q)
+
+
+def _op_mark(st: Step, env: dict[str, Any], prev: Any, ctx: Context) -> Any:
+    idx = ctx.idx
+    a = st.args
+    s = sorted(i for i in _set_in(st, env, prev, idx) if i in idx.referable)
+    n = resolve(a.get("count"), env, prev, idx) or 3
+    if len(s) < n:
+        raise Reject("too_few")
+    pick = ctx.rng.choice(len(s), size=n, replace=False)
+    return tuple(s[int(k)] for k in pick)
+
+
+def _op_choose(st: Step, env: dict[str, Any], prev: Any, ctx: Context) -> Any:
+    idx = ctx.idx
+    a = st.args
+    opts = resolve(a["options"], env, prev, idx)
+    rel = resolve(a["relation"], env, prev, idx)
+    anchor = resolve(a["anchor"], env, prev, idx) if "anchor" in a else None
+    if len(set(opts)) != len(opts) or (anchor is not None and anchor in opts):
+        raise Reject("same_object")
+    mode = a["mode"].value if "mode" in a else "most"
+    if mode == "which" and rel not in ops.ANCHORED:
+        if anchor is None:
+            raise Reject("no_anchor")
+        sat = [i for i, o in enumerate(opts) if idx.holds(rel, (o, anchor))]
+        if len(sat) != 1:
+            raise Reject("not_unique" if sat else "empty")
+        win = sat[0]
+    else:
         if rel in ops.ANCHORED and anchor is None:
             raise Reject("no_anchor")
-        return _winner([x for x in s if x != anchor], rel, anchor, idx)
-    if op == "ordinal":
-        s = sorted(_set_in(st, env, prev, idx))
-        rel = resolve(a["relation"], env, prev, idx)
-        rank = resolve(a["rank"], env, prev, idx)
-        n = len(s)
-        if rank > n or n < 2:
-            raise Reject("rank")
-        wins = {x: 0 for x in s}
-        for i, x in enumerate(s):
-            for y in s[i + 1:]:
-                if idx.holds(rel, (x, y)):
-                    wins[x] += 1
-                else:
-                    wins[y] += 1
-        for x in s:
-            if wins[x] == n - rank:
-                return x
-        raise Reject("rank")
-    if op == "locate":
-        obj = _single(resolve(a.get("of"), env, prev, idx))
-        return PointValue(idx.point(obj), obj)
-    if op == "free_space":
-        if "region" in a:
-            r = resolve(a["region"], env, prev, idx)
-        elif "anchors" in a:
-            b, c = resolve(a["anchors"], env, prev, idx)
-            r = idx.regions.get(("between", (b, c))) or idx.regions.get(("between", (c, b)))
-        else:
-            d = resolve(a["direction"], env, prev, idx)
-            r = idx.regions.get((d, (resolve(a["anchor"], env, prev, idx),)))
-        if r is None:
-            raise Reject("no_free_space")
-        return PointValue((float(r.point[0]), float(r.point[1])), None, r)
-    if op == "compare":
-        rel = resolve(a["relation"], env, prev, idx)
-        x, y = _single(resolve(a["a"], env, prev, idx)), _single(resolve(a["b"], env, prev, idx))
-        anchor = resolve(a["anchor"], env, prev, idx) if "anchor" in a else None
-        if x == y or (anchor is not None and anchor in (x, y)):
-            raise Reject("same_object")
-        if rel in ops.ANCHORED:
-            if anchor is None:
-                raise Reject("no_anchor")
-            return idx.holds(rel, (x, y, anchor))
-        return idx.holds(rel, (x, y))
-    if op == "all":
-        return all(resolve(a["of"], env, prev, idx))
-    if op == "measure":
-        q = a["quantity"].value
-        x = _single(resolve(a.get("of"), env, prev, idx))
-        if q == "distance" or q == "angle":
-            y = resolve(a["to"], env, prev, idx)
-            if x == y:
-                raise Reject("same_object")
-            if q == "angle" and not (idx.has_front.get(x) and idx.has_front.get(y)):
-                raise Reject("no_front")
-            idx.holds(q, (x, y))  # an undecided quantity (unknown front...) is not asked
-            return NumberValue(idx.value(q, (x, y)), q)
-        if q == "depth" or q.startswith("rotation"):
-            idx.holds(q, (x,))  # depth of an object spanning a long range, a turn inside the margin
-            return NumberValue(idx.value(q, (x,)), q)
-        w, _, h = idx.size(x)
-        return NumberValue(h if q == "height" else w, q)
-    if op == "mark":
-        s = sorted(i for i in _set_in(st, env, prev, idx) if i in idx.referable)
-        n = resolve(a.get("count"), env, prev, idx) or 3
-        if len(s) < n:
-            raise Reject("too_few")
-        pick = ctx.rng.choice(len(s), size=n, replace=False)
-        return tuple(s[int(k)] for k in pick)
-    if op == "choose":
-        opts = resolve(a["options"], env, prev, idx)
-        rel = resolve(a["relation"], env, prev, idx)
-        anchor = resolve(a["anchor"], env, prev, idx) if "anchor" in a else None
-        if len(set(opts)) != len(opts) or (anchor is not None and anchor in opts):
-            raise Reject("same_object")
-        mode = a["mode"].value if "mode" in a else "most"
-        if mode == "which" and rel not in ops.ANCHORED:
-            if anchor is None:
-                raise Reject("no_anchor")
-            sat = [i for i, o in enumerate(opts) if idx.holds(rel, (o, anchor))]
-            if len(sat) != 1:
-                raise Reject("not_unique" if sat else "empty")
-            win = sat[0]
-        else:
-            if rel in ops.ANCHORED and anchor is None:
-                raise Reject("no_anchor")
-            if rel in ops.PAIRWISE:
-                raise Reject("not_ordered")
-            win = list(opts).index(_winner(opts, rel, anchor, idx))
-        return OptionValue(tuple(opts), win, marks="options" in a and a["options"].kind == "step")
-    if op == "camera_turn":
-        if ctx.second is None:
-            raise Reject("single_view")
-        axis = a["axis"].value
-        d = camera_turn(ctx.idx, ctx.second, axis)
-        if abs(d) < TURN_MARGIN:
-            raise Reject("margin")
-        words = ops.TURN_AXES[axis]
-        return OptionValue(words, 0 if d > 0 else 1)
-    raise ValueError(f"unknown op {op}")
+        if rel in ops.PAIRWISE:
+            raise Reject("not_ordered")
+        win = list(opts).index(_winner(opts, rel, anchor, idx))
+    return OptionValue(tuple(opts), win, marks="options" in a and a["options"].kind == "step")
+
+
+def _op_camera_turn(st: Step, env: dict[str, Any], prev: Any, ctx: Context) -> Any:
+    a = st.args
+    if ctx.second is None:
+        raise Reject("single_view")
+    axis = a["axis"].value
+    d = camera_turn(ctx.idx, ctx.second, axis)
+    if abs(d) < TURN_MARGIN:
+        raise Reject("margin")
+    words = ops.TURN_AXES[axis]
+    return OptionValue(words, 0 if d > 0 else 1)
+
+
+_OPS = {  # op name -> implementation (qa/ops.py declares the ops and their arguments)
+    "filter": _op_filter, "relate": _op_relate, "at": _op_at, "is_at": _op_is_at, "between": _op_between,
+    "superlative": _op_superlative, "ordinal": _op_ordinal, "locate": _op_locate, "free_space": _op_free_space,
+    "compare": _op_compare, "all": _op_all, "measure": _op_measure, "mark": _op_mark, "choose": _op_choose,
+    "camera_turn": _op_camera_turn
+}
+
+
+def run_step(st: Step, env: dict[str, Any], prev: Any, ctx: Context) -> Any:
+    """Execute one step (the reference interpreter); raise Reject when the step has no well-defined result."""
+    impl = _OPS.get(st.op)
+    if impl is None:
+        raise ValueError(f"unknown op {st.op}")
+    return impl(st, env, prev, ctx)
 
 
 def camera_turn(first: SceneIndex, second: SceneIndex, axis: str) -> float:
