@@ -149,3 +149,21 @@ def test_compiled_steps_agree_with_run_step(scenes):
                                     assert got == want, (t.name, env)
                                 checked += 1
     assert checked > 1000
+
+
+def test_spot_facts_match_graph_index(scenes):
+    """corner/edge lookups (the `at` op) give what GraphIndex.fact gives, for every object and labelled spot."""
+    seen = {True: 0, None: 0, False: 0, "absent": 0}
+    for f, g in scenes:
+        idx, ref = SceneIndex(f, g), GraphIndex(g, f)
+        for kind, sid, label in idx.spots + (("corner", "table", "no-such-label"), ("edge", "nowhere", "left")):
+            for a in idx.ids + (10_000,):
+                want = ref.fact(kind, a, sid, label)
+                got = idx.fact(kind, (a, sid, label))
+                if want is None:
+                    assert got is None
+                    seen["absent"] += 1
+                else:
+                    assert (got.holds, got.value) == (want.holds, float(want.value)), (kind, a, sid, label)
+                    seen[want.holds] += 1
+    assert seen[False] and seen["absent"] and (seen[True] or seen[None])

@@ -172,6 +172,10 @@ class SceneIndex:
                     out = Fact(tab[1][i][j], tab[2][i][j])
             self._fact_cache[key] = out
             return out
+        if (relation == "corner" or relation == "edge") and len(args) == 3:
+            out = self._spot_fact(relation, args)
+            self._fact_cache[key] = out
+            return out
         if (relation == "close" or relation == "far") and self._between_ok(args):
             out = self._close_fact(*args) if relation == "close" else self._close_fact(args[1], args[0], args[2])
             self._fact_cache[key] = out
@@ -181,8 +185,7 @@ class SceneIndex:
             out = Fact(h, float(t))
             self._fact_cache[key] = out
             return out
-        f = self.gindex.fact(relation, *args)
-        out = None if f is None else Fact(f.holds, float(f.value))
+        out = self._general_fact(relation, args)
         self._fact_cache[key] = out
         return out
 
@@ -233,6 +236,24 @@ class SceneIndex:
         nodes = self.nodes
         return (a != b and a != c and b != c and type(a) is int and type(b) is int and type(c) is int
                 and a in nodes and b in nodes and c in nodes)
+
+    def _spot_fact(self, relation: str, args: tuple) -> Fact | None:
+        """corner/edge(a, surface, label) by GraphIndex's rule without building RelationFacts: the stored
+        instance, else False when a stands on that surface and the surface has that label, else None."""
+        a, sid, label = args
+        if type(a) is not int or a not in self.nodes or not self.gindex.world or len({a, sid, label}) < 3:
+            return self._general_fact(relation, args)
+        f = self.gindex._facts.get((relation, args))
+        if f is not None:
+            return Fact(f.holds, float(f.value))
+        labels = self.gindex.surfaces.get(sid, {}).get("corners" if relation == "corner" else "edges", [])
+        if self.nodes[a].attributes.get("surface") != sid or label not in labels:
+            return None
+        return Fact(False, 0.0)
+
+    def _general_fact(self, relation: str, args: tuple) -> Fact | None:
+        f = self.gindex.fact(relation, *args)
+        return None if f is None else Fact(f.holds, float(f.value))
 
     def _close_fact(self, a: int, b: int, c: int) -> Fact | None:
         """close(a, b, c): a is closer to c than b is (value d(b, c) - d(a, c)); far(a, b, c) = close(b, a, c).
