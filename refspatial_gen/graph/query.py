@@ -19,7 +19,7 @@ from refspatial_gen.graph.constants import Thresholds
 from refspatial_gen.graph.relations import REGISTRY
 from refspatial_gen.graph.relations.base import decide
 from refspatial_gen.graph.relations.common import TRUE, UNDECIDED, holds_of
-from refspatial_gen.graph.relations.containment import between_arrays, between_table
+from refspatial_gen.graph.relations.containment import between_arrays, table_from_arrays
 from refspatial_gen.graph.relations.orientation import SECTORS, angle_between, bearings, sector_codes
 from refspatial_gen.graph.relations.sizes import DERIVED, compare
 
@@ -43,6 +43,10 @@ class GraphIndex:
         self._dist: np.ndarray | None = None
         self._pos: dict[int, int] = {x: k for k, x in enumerate(self.ids)}  # id -> row of the derived tables
         self._between_rows: dict | None = None
+        self._barr: tuple | None = None
+        self._bpairs: dict | None = None
+        self._bmasks: tuple = ([], [])
+        self._brow: dict[tuple[int, int], tuple[frozenset, frozenset]] = {}
 
     # ------------------------------------------------------------------ nodes
     def node(self, object_id: int) -> Node:
@@ -203,19 +207,48 @@ class GraphIndex:
         The same arrays and rule as between_code, grouped per anchor pair for set-at-once lookups."""
         if self._between_rows is None:
             rows: dict[tuple[int, int], tuple[frozenset, frozenset]] = {}
-            arr = self._between_arrays()
-            if arr is not None:
-                ids = self.ids
-                B, C, cand, code, _t = arr
-                for b, c, cr, kr in zip(B.tolist(), C.tolist(), cand.tolist(), code.tolist()):
-                    t = [ids[a] for a, (ok, k) in enumerate(zip(cr, kr)) if ok and k == TRUE]
-                    u = [ids[a] for a, (ok, k) in enumerate(zip(cr, kr)) if ok and k == UNDECIDED]
-                    if t or u:
-                        rows[(ids[b], ids[c])] = (frozenset(t), frozenset(u))
+            for key in self._between_pairs():
+                t, u = self.between_row(*key)
+                if t or u:
+                    rows[key] = (t, u)
             self._between_rows = rows
         return self._between_rows
 
+    def between_row(self, b: int, c: int) -> tuple[frozenset, frozenset]:
+        """One entry of between_rows (b < c), built on first request: the QA index asks for a few anchor
+        pairs per frame, so the rows it never asks for are never built."""
+        row = self._brow.get((b, c))
+        if row is None:
+            pairs = self._between_pairs()
+            p = pairs.get((b, c))
+            if p is None:
+                row = (frozenset(), frozenset())
+            else:
+                ids, (yes, maybe) = self.ids, self._bmasks
+                row = (frozenset([ids[a] for a, ok in enumerate(yes[p]) if ok]),
+                       frozenset([ids[a] for a, ok in enumerate(maybe[p]) if ok]))
+            self._brow[(b, c)] = row
+        return row
+
+    def _between_pairs(self) -> dict[tuple[int, int], int]:
+        """(b, c) anchor ids -> row of the between arrays; also keeps the rows' true/undecided masks as lists."""
+        if self._bpairs is None:
+            arr = self._between_arrays()
+            self._bpairs, self._bmasks = {}, ([], [])
+            if arr is not None:
+                ids = self.ids
+                B, C, cand, code, _t = arr
+                self._bpairs = {(ids[b], ids[c]): p for p, (b, c) in enumerate(zip(B.tolist(), C.tolist()))}
+                self._bmasks = ((cand & (code == TRUE)).tolist(), (cand & (code == UNDECIDED)).tolist())
+        return self._bpairs
+
     def _between_arrays(self):
+        """between_arrays over the stored node centres and distances, computed once per index."""
+        if self._barr is None:
+            self._barr = (self._compute_between_arrays(),)
+        return self._barr[0]
+
+    def _compute_between_arrays(self):
         xy = np.array([self.nodes[i].attributes["center"][:2] for i in self.ids], float).reshape(-1, 2)
         cats = [self.nodes[i].category for i in self.ids]
         return between_arrays(xy, np.array(self.ids), cats, self._distance_matrix(), self.th)
@@ -234,9 +267,7 @@ class GraphIndex:
     def _between_table(self) -> dict:
         """between_table over the stored node centres and distances, built once (positions in self.ids)."""
         if self._between is None:
-            xy = np.array([self.nodes[i].attributes["center"][:2] for i in self.ids], float).reshape(-1, 2)
-            cats = [self.nodes[i].category for i in self.ids]
-            self._between = between_table(xy, np.array(self.ids), cats, self._distance_matrix(), self.th)
+            self._between = table_from_arrays(self._between_arrays())
         return self._between
 
     def _between_fact(self, a, b, c) -> RelationFact | None:

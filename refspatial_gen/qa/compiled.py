@@ -37,6 +37,9 @@ def _generic(st: Step) -> StepFn:
         try:
             return impl(st, env, prev, ctx)
         except Reject as r:
+            # returned, not raised: drop the traceback, whose frames would otherwise hold the exception (and
+            # through the frames' locals the whole scene index) in a reference cycle only the collector frees
+            r.__traceback__ = None
             return r
     return fn
 

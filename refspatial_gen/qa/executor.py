@@ -395,6 +395,14 @@ def slot_candidates(t: Template, name: str, env: dict[str, Any], ctx: Context) -
     return []
 
 
+def slot_signature(s) -> tuple:
+    """What slot_candidates reads of a slot declaration (computed once per declaration)."""
+    sig = s.__dict__.get("_signature")
+    if sig is None:
+        sig = s.__dict__["_signature"] = (s.type, s.choices, s.category, s.has_front, s.min, s.max, s.kinds)
+    return sig
+
+
 def search_plan(t: Template) -> list[tuple]:
     """Per step, computed once per template: the step, the slots it binds, which of those are objects, how
     often it is retried, and its compiled function."""
@@ -425,13 +433,13 @@ class Search:
     def candidates(self, name: str) -> list:
         c = self._cands.get(name)
         if c is None:
-            # the unshuffled list depends only on (template, slot, frame): kept on the frame's index
+            # the unshuffled list depends only on the slot's declaration and the frame: kept on the frame's
+            # index under the declaration's signature, so templates declaring the same slot share it
             memo = self.ctx.idx.slot_memo
-            mk = (id(self.t), name)
-            hit = memo.get(mk)
-            if hit is None or hit[0] is not self.t:
-                hit = memo[mk] = (self.t, tuple(slot_candidates(self.t, name, {}, self.ctx)))
-            base = hit[1]
+            mk = slot_signature(self.t.slots[name])
+            base = memo.get(mk)
+            if base is None:
+                base = memo[mk] = tuple(slot_candidates(self.t, name, {}, self.ctx))
             if len(base) > 1:
                 base = [base[k] for k in self.ctx.rng.permutation(len(base)).tolist()]
             else:

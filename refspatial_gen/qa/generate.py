@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from collections import OrderedDict
 
-import math
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -56,7 +55,8 @@ _PARSED: dict[str, Seq] = {}
 
 
 def scene_index(frame: Frame, graph: SceneGraph) -> SceneIndex:
-    """The cached lookup index of a (frame, graph) pair (built once per graph object)."""
+    """The cached lookup index of a (frame, graph) pair (built once per graph object), for callers that query
+    the same graph many times (tests, the warm-index bench); generate_qa builds its own unless given one."""
     idx = _INDEX_CACHE.get(graph)
     if idx is None or idx.frame is not frame:
         idx = SceneIndex(frame, graph)
@@ -99,11 +99,24 @@ class Balancer:
 
 
 def generate_qa(frames: list[Frame], graphs: list[SceneGraph], rng: np.random.Generator,
-                config: QAConfig) -> list[QAPair]:
-    """Up to `config.max_per_sample` checked QA pairs for one sample (one frame or a multi-view group)."""
+                config: QAConfig, indexes: list[SceneIndex] | None = None) -> list[QAPair]:
+    """Up to `config.max_per_sample` checked QA pairs for one sample (one frame or a multi-view group).
+
+    The lookup indexes are built for this call and freed with it (a run uses each graph in one sample only;
+    keeping them would only give the garbage collector more to scan). Callers that ask several times of the
+    same graphs (tests, the warm-index bench) pass `indexes` (scene_index) to reuse them.
+    """
     if len(frames) != len(graphs):
         raise ValueError(f"{len(frames)} frames but {len(graphs)} graphs")
-    idxs = [scene_index(f, g) for f, g in zip(frames, graphs)]
+    if indexes is not None and (len(indexes) != len(frames)
+                                or any(i.frame is not f or i.graph is not g for i, f, g in zip(indexes, frames, graphs))):
+        raise ValueError("indexes must be the SceneIndex of each (frame, graph), in order")
+    idxs = indexes or [SceneIndex(f, g) for f, g in zip(frames, graphs)]
+    return _generate(frames, idxs, rng, config)
+
+
+def _generate(frames: list[Frame], idxs: list[SceneIndex], rng: np.random.Generator,
+              config: QAConfig) -> list[QAPair]:
     pairs = [(i, j) for i in range(len(frames)) for j in range(len(frames))
              if i != j and frames[i].scene_id and frames[i].scene_id == frames[j].scene_id]
     bal = Balancer(config.point_slack)

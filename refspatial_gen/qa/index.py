@@ -92,8 +92,8 @@ class SceneIndex:
         self._pairs: dict[str, tuple] = {}
         self._runs: dict[int, np.ndarray] = {}
         self._sizes: dict[int, tuple[float, float, float]] = {}
-        # executor: (id(template), slot) -> (template, unshuffled candidates); the template guards id reuse
-        self.slot_memo: dict[tuple[int, str], tuple] = {}
+        # executor: slot signature (executor.slot_signature) -> unshuffled candidates in this frame
+        self.slot_memo: dict[tuple, tuple] = {}
         self.by_category: dict[str, frozenset[int]] = {
             c: frozenset(i for i in self.ids if self.category[i] == c) for c in self.categories}
         self.by_color: dict[str, frozenset[int]] = {
@@ -197,8 +197,7 @@ class SceneIndex:
         if entry is None and self.gindex.world and b != c and type(b) is int and type(c) is int \
                 and b in self.nodes and c in self.nodes:
             # whole row from the graph index's grouped table: a fact for every other object, absent = False
-            rows = self.gindex.between_rows()
-            t, u = rows.get((b, c) if b < c else (c, b), (frozenset(), frozenset()))
+            t, u = self.gindex.between_row(b, c) if b < c else self.gindex.between_row(c, b)
             entry = (t, u, frozenset())
             self._rel_sets[key] = entry
         if entry is None:

@@ -73,7 +73,11 @@ def between_arrays(xy: np.ndarray, ids: np.ndarray, categories: list[str], dist:
 def between_table(xy: np.ndarray, ids: np.ndarray, categories: list[str], dist: np.ndarray, th) -> dict:
     """{(a, b, c) positions: (code, t)} for anchors b, c with ids[b] < ids[c]; False instances omitted.
     Shared by the geometry and the query index (which passes stored node centres and distances)."""
-    arr = between_arrays(xy, ids, categories, dist, th)
+    return table_from_arrays(between_arrays(xy, ids, categories, dist, th))
+
+
+def table_from_arrays(arr) -> dict:
+    """between_table's dict from between_arrays' output (callers holding the arrays skip recomputing them)."""
     if arr is None:
         return {}
     B, C, cand, code, t = arr
