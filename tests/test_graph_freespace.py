@@ -47,7 +47,6 @@ def _first(graph, kind):
 def test_planted_violations_are_caught(toy_graphs):
     frame, graph = toy_graphs[0]
     r = _first(graph, "right_of")
-    W, H = frame.camera.width, frame.camera.height
     # outside the image
     assert any("outside the image" in p for p in check_free_point(frame, graph, r, (1.2, 0.5)))
     # on an object: the object's own answer point (occludes the table, and lies on its footprint)

@@ -11,13 +11,12 @@ import json
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from refspatial_gen.core.camera import Camera
 from refspatial_gen.core.geometry import Box3D
 from refspatial_gen.core.mask import RLE
 from refspatial_gen.core.model import Frame, ObjectInstance
-from refspatial_gen.graph import build_graph, geometry
+from refspatial_gen.graph import build_graph
 from refspatial_gen.graph.query import GraphIndex
 from refspatial_gen.graph.resolve import resolver
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from refspatial_gen.core.errors import DropUnit, RecipeErrors
-from refspatial_gen.core.mask import RLE, answer_pixel
+from refspatial_gen.core.mask import answer_pixel
 from refspatial_gen.core.serialize import dumps
 from refspatial_gen.sources import get_source
 from refspatial_gen.sources.image import ImageSource, parse_key, unit_key

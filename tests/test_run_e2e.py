@@ -4,7 +4,6 @@ import json
 import subprocess
 import sys
 
-import numpy as np
 
 from refspatial_gen.core.errors import DropUnit
 from refspatial_gen.core.mask import denormalise_point

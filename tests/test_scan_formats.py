@@ -44,7 +44,6 @@ def write_generic(folder: Path, frames, up=(0, 0, 1), per_frame=False) -> Path:
 @pytest.fixture
 def toy_scan(tmp_path):
     frames = [toy_frame(np.random.default_rng(s), 5, 320, 240, frame_id=f"t{s}") for s in (3,)]
-    rng = np.random.default_rng(3)
     return write_generic(tmp_path / "scan", frames), frames[0]
 
 

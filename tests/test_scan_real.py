@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from refspatial_gen.core.mask import answer_pixel, denormalise_point, normalise_point
 from refspatial_gen.sources import get_source

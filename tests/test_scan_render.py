@@ -21,7 +21,7 @@ OBJECTS = [  # category, centre, size, colour
 
 
 def write_usd(path: Path) -> None:
-    from pxr import Gf, Sdf, Usd, UsdGeom, UsdSemantics
+    from pxr import Gf, Usd, UsdGeom, UsdSemantics
 
     stage = Usd.Stage.CreateNew(str(path))
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)

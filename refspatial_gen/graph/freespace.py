@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 import shapely
-from shapely.geometry import MultiPolygon, Polygon
+from shapely.geometry import Polygon
 from shapely.ops import unary_union
 
 from refspatial_gen.core.mask import denormalise_point, normalise_point

@@ -197,7 +197,6 @@ class _Run:
     def run(self, drop: int | None = None) -> tuple[Any, dict]:
         env: dict[str, Any] = {}
         prev = None
-        w = self.w
         for k, st in enumerate(self.qa.program):
             op, raw = st["op"], st.get("args") or {}
             a = {key: self.ref(v, env, prev) for key, v in raw.items()}
@@ -527,7 +526,7 @@ def _check_trace(qa: QAPair, w: _World) -> list[str]:
     if qa.trace:
         m = re.match(r"^<think>(.*)</think><answer>(.*)</answer>$", qa.trace, re.S)
         if not m:
-            return [f"trace is not <think>...</think><answer>...</answer>"]
+            return ["trace is not <think>...</think><answer>...</answer>"]
         if m.group(2) != qa.answer:
             out.append("trace answer differs from the answer")
         lines = [ln for ln in m.group(1).split("\n") if ln.strip()]

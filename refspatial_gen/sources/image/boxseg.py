@@ -140,7 +140,6 @@ def _owner_map(lab: np.ndarray, depth: np.ndarray, rects: list[tuple[int, int, i
     for i in np.argsort(-area, kind="stable"):
         inner[inb[i]] = i
     priv = np.stack([inner == i for i in range(nb)])
-    own_area = priv.reshape(nb, -1).sum(axis=1).astype(float)
     inside = np.stack([np.bincount(lab[inb[i]], minlength=nseg) for i in range(nb)]).astype(np.float64)
     excl = np.stack([np.bincount(lab[priv[i]], minlength=nseg) for i in range(nb)]).astype(np.float64)
     share = inside / total

@@ -13,7 +13,6 @@ from typing import Any
 
 import mujoco
 import numpy as np
-import trimesh
 
 from refspatial_gen.assets.shapes import AssetGeometry, Part, quat_from_matrix, rot_axis
 from refspatial_gen.core.errors import DropUnit
