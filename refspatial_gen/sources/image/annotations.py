@@ -331,7 +331,7 @@ def resolved_bbox(ann: Annotation, rec: ImageRecord, width: int, height: int) ->
 def read_panoptic_ids(path: Path, width: int, height: int, image_id: str) -> np.ndarray:
     import cv2
 
-    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    img = cv2.imread(str(path), cv2.IMREAD_COLOR | cv2.IMREAD_IGNORE_ORIENTATION)  # label map: never rotated
     if img is None:
         raise DropUnit("annotation_unreadable", f"image {image_id}: panoptic PNG {path} could not be decoded")
     if img.shape[:2] != (height, width):

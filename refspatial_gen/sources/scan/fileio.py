@@ -18,7 +18,8 @@ def read_rgb(path: str | Path) -> np.ndarray:
     p = Path(path)
     if not p.is_file():
         raise DropUnit("image_missing", str(p))
-    img = cv2.imdecode(np.fromfile(str(p), dtype=np.uint8), cv2.IMREAD_COLOR)
+    # the stored pixel grid, as depth, intrinsics and annotations refer to it: no EXIF rotation
+    img = cv2.imdecode(np.fromfile(str(p), dtype=np.uint8), cv2.IMREAD_COLOR | cv2.IMREAD_IGNORE_ORIENTATION)
     if img is None:
         raise DropUnit("image_unreadable", str(p))
     return np.ascontiguousarray(img[..., ::-1])

@@ -112,7 +112,7 @@ def decode_image_message(d: dict[str, Any], schema: str) -> np.ndarray:
 
     data = d.get("data", b"")
     if schema == "foxglove.CompressedImage":
-        img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+        img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR | cv2.IMREAD_IGNORE_ORIENTATION)
         if img is None:
             raise DropUnit("image_unreadable", f"compressed image ({d.get('format')}) could not be decoded")
         return np.ascontiguousarray(img[..., ::-1])
