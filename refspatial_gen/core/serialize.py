@@ -60,10 +60,13 @@ def encode_jpeg(rgb: np.ndarray, quality: int = 92) -> bytes:
 
 
 def decode_image(blob: bytes) -> np.ndarray:
-    """PNG/JPEG bytes -> uint8 RGB. Raises ValueError on undecodable input."""
+    """PNG/JPEG bytes -> uint8 RGB on the stored pixel grid. Raises ValueError on undecodable input.
+
+    Why the grid as stored: depth maps, intrinsics and annotations refer to it, and OpenCV would otherwise
+    turn an image carrying an EXIF orientation tag away from them."""
     import cv2
 
-    img = cv2.imdecode(np.frombuffer(blob, dtype=np.uint8), cv2.IMREAD_COLOR)
+    img = cv2.imdecode(np.frombuffer(blob, dtype=np.uint8), cv2.IMREAD_COLOR | cv2.IMREAD_IGNORE_ORIENTATION)
     if img is None:
         raise ValueError("image bytes could not be decoded")
     return np.ascontiguousarray(img[..., ::-1])

@@ -27,6 +27,8 @@ PAIR_REL = {"left", "front", "above_image", "above_world"}
 SYMMETRIC_STORED = {"distance", "touching", "far_from", "next_to"}
 
 
+_UNSET = object()  # not computed yet (between_arrays itself may return None)
+
 class GraphIndex:
     """Index over one SceneGraph. `frame` is optional (only needed by callers that want pixels)."""
 
@@ -42,8 +44,7 @@ class GraphIndex:
         self._between: dict | None = None
         self._dist: np.ndarray | None = None
         self._pos: dict[int, int] = {x: k for k, x in enumerate(self.ids)}  # id -> row of the derived tables
-        self._between_rows: dict | None = None
-        self._barr: tuple | None = None
+        self._barr = _UNSET
         self._bpairs: dict | None = None
         self._bmasks: tuple = ([], [])
         self._brow: dict[tuple[int, int], tuple[frozenset, frozenset]] = {}
@@ -205,14 +206,8 @@ class GraphIndex:
     def between_rows(self) -> dict[tuple[int, int], tuple[frozenset, frozenset]]:
         """{(b, c) ids with b < c: (ids A with between(A, b, c) true, ids undecided)}; every other A is False.
         The same arrays and rule as between_code, grouped per anchor pair for set-at-once lookups."""
-        if self._between_rows is None:
-            rows: dict[tuple[int, int], tuple[frozenset, frozenset]] = {}
-            for key in self._between_pairs():
-                t, u = self.between_row(*key)
-                if t or u:
-                    rows[key] = (t, u)
-            self._between_rows = rows
-        return self._between_rows
+        rows = {key: self.between_row(*key) for key in self._between_pairs()}
+        return {key: (t, u) for key, (t, u) in rows.items() if t or u}
 
     def between_row(self, b: int, c: int) -> tuple[frozenset, frozenset]:
         """One entry of between_rows (b < c), built on first request: the QA index asks for a few anchor
@@ -243,10 +238,10 @@ class GraphIndex:
         return self._bpairs
 
     def _between_arrays(self):
-        """between_arrays over the stored node centres and distances, computed once per index."""
-        if self._barr is None:
-            self._barr = (self._compute_between_arrays(),)
-        return self._barr[0]
+        """between_arrays over the stored node centres and distances (kept: the table and the rows share it)."""
+        if self._barr is _UNSET:
+            self._barr = self._compute_between_arrays()
+        return self._barr
 
     def _compute_between_arrays(self):
         xy = np.array([self.nodes[i].attributes["center"][:2] for i in self.ids], float).reshape(-1, 2)

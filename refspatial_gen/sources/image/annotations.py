@@ -329,15 +329,16 @@ def resolved_bbox(ann: Annotation, rec: ImageRecord, width: int, height: int) ->
 
 
 def read_panoptic_ids(path: Path, width: int, height: int, image_id: str) -> np.ndarray:
-    import cv2
+    from refspatial_gen.core.serialize import decode_image
 
-    img = cv2.imread(str(path), cv2.IMREAD_COLOR | cv2.IMREAD_IGNORE_ORIENTATION)  # label map: never rotated
-    if img is None:
-        raise DropUnit("annotation_unreadable", f"image {image_id}: panoptic PNG {path} could not be decoded")
+    try:
+        img = decode_image(Path(path).read_bytes())  # a label map: never turned by an EXIF tag
+    except (OSError, ValueError) as e:
+        raise DropUnit("annotation_unreadable", f"image {image_id}: panoptic PNG {path} could not be decoded") from e
     if img.shape[:2] != (height, width):
         raise DropUnit("annotation_size_mismatch",
                        f"image {image_id}: panoptic PNG is {img.shape[1]}x{img.shape[0]}, image {width}x{height}")
-    rgb = img[..., ::-1].astype(np.int64)
+    rgb = img.astype(np.int64)
     return rgb[..., 0] + 256 * rgb[..., 1] + 256 * 256 * rgb[..., 2]
 
 

@@ -12,17 +12,16 @@ DEPTH_ENCODINGS = ("mm", "tum5000", "sun_shift", "float_m")
 
 
 def read_rgb(path: str | Path) -> np.ndarray:
-    """Any image file -> uint8 RGB HxWx3; a missing or undecodable file drops the frame."""
-    import cv2
+    """Any image file -> uint8 RGB HxWx3 (stored pixel grid); a missing or undecodable file drops the frame."""
+    from refspatial_gen.core.serialize import decode_image
 
     p = Path(path)
     if not p.is_file():
         raise DropUnit("image_missing", str(p))
-    # the stored pixel grid, as depth, intrinsics and annotations refer to it: no EXIF rotation
-    img = cv2.imdecode(np.fromfile(str(p), dtype=np.uint8), cv2.IMREAD_COLOR | cv2.IMREAD_IGNORE_ORIENTATION)
-    if img is None:
-        raise DropUnit("image_unreadable", str(p))
-    return np.ascontiguousarray(img[..., ::-1])
+    try:
+        return decode_image(p.read_bytes())
+    except ValueError as e:
+        raise DropUnit("image_unreadable", str(p)) from e
 
 
 def decode_depth_array(raw: np.ndarray, encoding: str) -> np.ndarray:

@@ -108,14 +108,14 @@ def _message_at(path: str, topic: str, t: int) -> dict[str, Any]:
 
 def decode_image_message(d: dict[str, Any], schema: str) -> np.ndarray:
     """Colour message -> uint8 RGB."""
-    import cv2
+    from refspatial_gen.core.serialize import decode_image
 
     data = d.get("data", b"")
     if schema == "foxglove.CompressedImage":
-        img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR | cv2.IMREAD_IGNORE_ORIENTATION)
-        if img is None:
-            raise DropUnit("image_unreadable", f"compressed image ({d.get('format')}) could not be decoded")
-        return np.ascontiguousarray(img[..., ::-1])
+        try:
+            return decode_image(bytes(data))
+        except ValueError as e:
+            raise DropUnit("image_unreadable", f"compressed image ({d.get('format')}) could not be decoded") from e
     w, h, enc = int(d.get("width", 0)), int(d.get("height", 0)), str(d.get("encoding", ""))
     ch = {"rgb8": 3, "bgr8": 3, "rgba8": 4, "bgra8": 4, "mono8": 1}.get(enc)
     step = int(d.get("step", w * (ch or 1)))
