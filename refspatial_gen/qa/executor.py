@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from itertools import product
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -403,17 +403,44 @@ def slot_signature(s) -> tuple:
     return sig
 
 
+_CHAIN_OPS = frozenset({"filter", "relate", "between", "at", "superlative", "ordinal"})
+_SET_OPS = frozenset({"filter", "relate", "between", "at"})
+
+
+def answer_chain(t: Template) -> list[bool]:
+    """Per step: is the answer object certainly a member of this step's output set? True for the set steps
+    of a chain that ends in `locate` of its input, where every later step narrows its predecessor's output
+    (no `in` of its own). The search uses it to drop a branch as soon as no answer it can reach would pass
+    the answer-position balance (generate.Balancer), instead of finding each such answer and rejecting it."""
+    steps = t.steps
+    n = len(steps)
+    flags = [False] * n
+    if n < 2 or steps[-1].op != "locate" or steps[-1].args.get("of") is not None:
+        return flags
+    # the answer is the one member of step n-2's output (or that step's object, for superlative/ordinal)
+    for j in range(n - 2, -1, -1):
+        op = steps[j].op
+        if op in _SET_OPS:
+            flags[j] = True
+        elif not (j == n - 2 and op in _CHAIN_OPS):
+            break
+        # step j's input set holds the answer: the previous step's output, when step j reads no `in` of its own
+        if steps[j].args.get("in") is not None:
+            break
+    return flags
+
+
 def search_plan(t: Template) -> list[tuple]:
     """Per step, computed once per template: the step, the slots it binds, which of those are objects, how
-    often it is retried, and its compiled function."""
+    often it is retried, its compiled function, and whether its output set holds the answer (answer_chain)."""
     plan = t.__dict__.get("_search_plan")
     if plan is None:
         from refspatial_gen.qa.compiled import compiled
 
         objslots = {n for n, s in t.slots.items() if s.type in ("object", "anchor")}
         plan = t.__dict__["_search_plan"] = [
-            (st, st.binds, [k for k, nm in enumerate(st.binds) if nm in objslots], 3 if st.op == "mark" else 1, fn)
-            for st, fn in zip(t.steps, compiled(t))]
+            (st, st.binds, [k for k, nm in enumerate(st.binds) if nm in objslots], 3 if st.op == "mark" else 1, fn,
+             on_chain) for st, fn, on_chain in zip(t.steps, compiled(t), answer_chain(t))]
     return plan
 
 
@@ -424,11 +451,14 @@ class Search:
     distinct objects. Every executed step costs one unit of budget.
     """
 
-    def __init__(self, t: Template, ctx: Context, budget: int) -> None:
-        self.t, self.ctx, self.budget = t, ctx, budget
+    def __init__(self, t: Template, ctx: Context, budget: int, answers: frozenset | None = None) -> None:
+        """`answers`: the objects the caller would accept as the answer (None = any); a branch whose output
+        set on the answer chain (answer_chain) holds none of them is dropped ("balance")."""
+        self.t, self.ctx, self.budget, self.answers = t, ctx, budget, answers
         self.rejects: dict[str, int] = {}
         self._cands: dict[str, list] = {}
         self._plan = search_plan(t)
+        self._lists: list[list | None] = [None] * len(self._plan)
 
     def candidates(self, name: str) -> list:
         c = self._cands.get(name)
@@ -441,21 +471,39 @@ class Search:
             if base is None:
                 base = memo[mk] = tuple(slot_candidates(self.t, name, {}, self.ctx))
             if len(base) > 1:
-                base = [base[k] for k in self.ctx.rng.permutation(len(base)).tolist()]
+                base = [base[k] for k in self.ctx.rng.permutation(len(base))]
             else:
                 base = list(base)
             c = self._cands[name] = base
         return c
 
     def instances(self):
-        env: dict[str, Any] = {}
-        yield from self._rec(0, env, None, frozenset())
+        """Every instance the search reaches, in search order (for tests; generation uses `first`)."""
+        found: list[dict] = []
 
-    def _rec(self, i: int, env: dict[str, Any], prev: Any, used: frozenset):
-        st, names, objs, tries, fn = self._plan[i]
+        def collect(env: dict) -> None:
+            found.append(dict(env))
+        self.first(collect)
+        return iter(found)
+
+    def first(self, accept: Callable[[dict], Any]) -> Any:
+        """Walk the bindings in search order and call `accept(env)` on each complete instance; return the first
+        result that is not None (None when the budget or the space runs out). `env` is the search's own
+        dict: accept must copy what it keeps. Plain recursion with a callback, not nested generators: a
+        generator per level and a `yield from` chain per instance cost more than the steps themselves."""
+        self._accept = accept
+        return self._walk(0, {}, None, frozenset())
+
+    def _walk(self, i: int, env: dict[str, Any], prev: Any, used: frozenset) -> Any:
+        st, names, objs, tries, fn, on_chain = self._plan[i]
         ctx, rejects, out = self.ctx, self.rejects, st.name
-        last = i + 1 == len(self._plan)  # the next level would only yield env: do it here, no generator
-        combos = product(*[self.candidates(nm) for nm in names]) if names else ((),)
+        last = i + 1 == len(self._plan)
+        nxt = self._accept if last else None
+        answers = self.answers if on_chain else None
+        lists = self._lists[i]
+        if lists is None:
+            lists = self._lists[i] = [self.candidates(nm) for nm in names]
+        combos = product(*lists) if names else ((),)
         n_names = len(names)
         one_obj = objs[0] if len(objs) == 1 else None
         for combo in combos:
@@ -477,32 +525,31 @@ class Search:
                 for nm, v in zip(names, combo):
                     env[nm] = v
             self.budget -= 1
-            if tries == 1:
-                val = fn(env, prev, ctx)
-                if val.__class__ is Reject:
-                    rejects[val.reason] = rejects.get(val.reason, 0) + 1
-                    continue
-                env[out] = val
-                if last:
-                    yield env
-                else:
-                    yield from self._rec(i + 1, env, val, used.union([combo[k] for k in objs]) if objs else used)
-                continue
             for _ in range(tries):
                 val = fn(env, prev, ctx)
                 if val.__class__ is Reject:
                     rejects[val.reason] = rejects.get(val.reason, 0) + 1
+                    if tries == 1:
+                        break
+                    continue
+                if answers is not None and answers.isdisjoint(val):
+                    rejects["balance"] = rejects.get("balance", 0) + 1
+                    if tries == 1:
+                        break
                     continue
                 env[out] = val
-                if last:
-                    yield env
+                if nxt is not None:
+                    r = nxt(env)
                 else:
-                    yield from self._rec(i + 1, env, val, used.union([combo[k] for k in objs]) if objs else used)
-                if self.budget <= 0:
+                    r = self._walk(i + 1, env, val, used.union([combo[k] for k in objs]) if objs else used)
+                if r is not None:
+                    return r
+                if tries != 1 and self.budget <= 0:
                     break
         env.pop(out, None)
         for nm in names:
             env.pop(nm, None)
+        return None
 
 
 def replay(t: Template, env: dict[str, Any], ctx: Context, drop: int | None = None) -> Any:

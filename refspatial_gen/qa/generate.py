@@ -18,14 +18,17 @@ import numpy as np
 from refspatial_gen.core.model import Frame, KeyStep, QAPair, SceneGraph
 from refspatial_gen.qa import lexicon, ops
 from refspatial_gen.qa.config import QAConfig
-from refspatial_gen.qa.executor import (Context, NumberValue, OptionValue, PointValue, Search, degenerate_steps,
+from refspatial_gen.qa.executor import (Context, NumberValue, OptionValue, PointValue, Search, answer_chain,
+                                        degenerate_steps,
                                         slot_candidates)
 from refspatial_gen.qa.index import Reject, SceneIndex
+from refspatial_gen.qa.sample_rng import SampleRng
 from refspatial_gen.qa.render import (LETTERS, fmt_angle, fmt_choices, fmt_length, fmt_points, fmt_trace,
                                       fmt_turn, round_key)
 from refspatial_gen.qa.templates import Ref, Template
 from refspatial_gen.qa.text import Seq, parse, render
 
+_MISS = object()
 CHECKS = ("unique_references", "nondegenerate", "outside_margin", "balanced")
 class _IndexCache:
     """The few most recent graph -> SceneIndex entries. Bounded on purpose: a WeakKeyDictionary never freed
@@ -78,6 +81,7 @@ class Balancer:
         self.slack = slack
         self.yes_no = [0, 0]
         self.quadrants = [0, 0, 0, 0]
+        self._allowed: dict[tuple, frozenset | None] = {}
 
     def want_bool(self, rng: np.random.Generator) -> bool:
         if self.yes_no[0] != self.yes_no[1]:
@@ -90,6 +94,21 @@ class Balancer:
 
     def point_ok(self, p: tuple[float, float]) -> bool:
         return self.quadrants[self.quadrant(p)] <= min(self.quadrants) + self.slack
+
+    def allowed_answers(self, idx: SceneIndex) -> frozenset | None:
+        """Objects whose answer point the quadrant balance accepts now (None: every object), so the search can
+        drop branches that could only reach rejected answers."""
+        key = (id(idx), tuple(self.quadrants))
+        hit = self._allowed.get(key, _MISS)
+        if hit is _MISS:
+            low = min(self.quadrants) + self.slack
+            if max(self.quadrants) <= low:
+                hit = None
+            else:
+                q = self.quadrants
+                hit = frozenset(i for i, p in idx.answer_points.items() if q[self.quadrant(p)] <= low)
+            self._allowed[key] = hit
+        return hit
 
     def add(self, answer: Any) -> None:
         if isinstance(answer, bool):
@@ -115,8 +134,9 @@ def generate_qa(frames: list[Frame], graphs: list[SceneGraph], rng: np.random.Ge
     return _generate(frames, idxs, rng, config)
 
 
-def _generate(frames: list[Frame], idxs: list[SceneIndex], rng: np.random.Generator,
+def _generate(frames: list[Frame], idxs: list[SceneIndex], sample_rng: np.random.Generator,
               config: QAConfig) -> list[QAPair]:
+    rng = SampleRng(sample_rng)  # template QA draws from a fast generator seeded by the sample's
     pairs = [(i, j) for i in range(len(frames)) for j in range(len(frames))
              if i != j and frames[i].scene_id and frames[i].scene_id == frames[j].scene_id]
     bal = Balancer(config.point_slack)
@@ -164,7 +184,7 @@ def _generate(frames: list[Frame], idxs: list[SceneIndex], rng: np.random.Genera
             mv_count += 1
     if config.point_depth:  # built-in camera-frame point/depth questions (work on frames without objects)
         from refspatial_gen.qa.pointdepth import point_depth_qa
-        out += point_depth_qa(frames, rng, min(config.point_depth, config.max_per_sample - len(out)), len(out))
+        out += point_depth_qa(frames, sample_rng, min(config.point_depth, config.max_per_sample - len(out)), len(out))
     return out
 
 
@@ -193,33 +213,45 @@ def _instantiate(t: Template, ctx: Context, rng: np.random.Generator, config: QA
     want = bal.want_bool(rng) if t.answer_type == ops.BOOL else None
     if flip and want is not None:
         want = not want
-    search = Search(t, ctx, config.budget)
     last = t.steps[-1].name
-    for env in search.instances():
+    slots = _slot_names(t)
+    is_obj = t.answer_type == ops.OBJECT
+    idx = ctx.idx
+
+    def accept(env: dict) -> QAPair | None:
         ans = env[last]
         if want is not None and ans is not want:
-            continue
-        key = (t.family, t.name, tuple(sorted((k, _hashable(v)) for k, v in env.items() if k in t.slots)))
+            return None
+        key = (t.family, t.name, tuple(sorted((k, _hashable(env[k])) for k in slots if k in env)))
         if key in seen:
-            continue
-        if t.answer_type == ops.OBJECT:
-            ans = PointValue(ctx.idx.point(ans), ans)
+            return None
+        if is_obj:
+            ans = PointValue(idx.point(ans), ans)
         if isinstance(ans, PointValue):
             if not bal.point_ok(ans.point):
-                continue
-            if ans.object_id is not None and not ctx.idx.point_in_mask(ans.object_id, ans.point):
-                continue
+                return None
+            if ans.object_id is not None and not idx.point_in_mask(ans.object_id, ans.point):
+                return None
         if degenerate_steps(t, env, ctx):
-            continue
+            return None
         try:
             extra = _bind_text_only(t, env, ctx)
             qa = _build(t, {**env, **extra}, ans, ctx, rng, frame_ids, qa_id)
         except Reject:
-            continue
+            return None
         seen.add(key)
         bal.add(env[last] if t.answer_type == ops.BOOL else ans)
         return qa
-    return None
+    answers = bal.allowed_answers(idx) if any(answer_chain(t)) else None
+    return Search(t, ctx, config.budget, answers).first(accept)
+
+
+def _slot_names(t: Template) -> tuple:
+    """The template's slot names (the dedup key reads them from each instance)."""
+    v = t.__dict__.get("_slot_names")
+    if v is None:
+        v = t.__dict__["_slot_names"] = tuple(t.slots)
+    return v
 
 
 def _one(v: Any) -> int:

@@ -63,6 +63,9 @@ class SceneIndex:
         self.objects = {o.id: o for o in frame.objects}
         self.phrase: dict[int, str] = {i: n.phrases[0] for i, n in self.nodes.items() if n.phrases}
         self.phrase_set = frozenset(p for n in graph.nodes for p in n.phrases)  # every phrase that names a node
+        # object -> answer point (normalised), for objects that have one
+        self.answer_points: dict[int, tuple[float, float]] = {
+            i: (float(n.point[0]), float(n.point[1])) for i, n in self.nodes.items() if n.point is not None}
         self.referable: tuple[int, ...] = tuple(i for i in self.ids if i in self.phrase and self.nodes[i].point is not None)
         self.category = {i: n.category for i, n in self.nodes.items()}
         self.color = {i: (n.attributes.get("color") or n.attributes.get("colour")) for i, n in self.nodes.items()}
