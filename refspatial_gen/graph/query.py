@@ -192,14 +192,22 @@ class GraphIndex:
         return None if f is None else float(f.value)
 
     def _distance_matrix(self) -> np.ndarray:
+        """Stored distances as a matrix over self.ids (inf where none is stored), from one pass over the facts:
+        a pair stored either way round gives both entries, the (a, b) instance winning as _distance does."""
         if self._dist is None:
-            n = len(self.ids)
-            d = np.zeros((n, n))
-            for i, a in enumerate(self.ids):
-                for j, b in enumerate(self.ids):
-                    if i != j:
-                        v = self._distance(a, b)
-                        d[i, j] = np.inf if v is None else v
+            n, pos = len(self.ids), self._pos
+            d = np.full((n, n), np.inf)
+            np.fill_diagonal(d, 0.0)
+            direct = []
+            for (rel, args), f in self._facts.items():
+                if rel == "distance" and len(args) == 2:
+                    i, j = pos.get(args[0]), pos.get(args[1])
+                    if i is not None and j is not None and i != j:
+                        direct.append((i, j, float(f.value)))
+            for i, j, v in direct:  # reversed instances first, so a stored (a, b) instance overrides them
+                d[j, i] = v
+            for i, j, v in direct:
+                d[i, j] = v
             self._dist = d
         return self._dist
 

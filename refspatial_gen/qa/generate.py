@@ -26,7 +26,7 @@ from refspatial_gen.qa.sample_rng import SampleRng
 from refspatial_gen.qa.render import (LETTERS, fmt_angle, fmt_choices, fmt_length, fmt_points, fmt_trace,
                                       fmt_turn, round_key)
 from refspatial_gen.qa.templates import Ref, Template
-from refspatial_gen.qa.text import Seq, parse, render
+from refspatial_gen.qa.text import Seq, parse, placeholders, render
 
 _MISS = object()
 CHECKS = ("unique_references", "nondegenerate", "outside_margin", "balanced")
@@ -153,14 +153,8 @@ def _generate(frames: list[Frame], idxs: list[SceneIndex], sample_rng: np.random
         if not usable:
             break
         fam = usable[_pick([f.weight for f in usable], rng)]
-        temps = [t for t in fam.templates if t.weight > 0 and id(t) not in exhausted]
-        multi = [_is_multiview(t) for t in temps]
-        if not pairs or mv_count >= config.multiview_pairs:
-            temps = [t for t, m in zip(temps, multi) if not m]
-        if not temps:
-            continue
-        tw = [t.weight * config.step_mix.get(t.n_steps, 1.0 if not config.step_mix else 0.0) for t in temps]
-        if sum(tw) <= 0:
+        temps, tw = _family_choices(fam, config, exhausted, bool(pairs) and mv_count < config.multiview_pairs)
+        if not temps or sum(tw) <= 0:
             continue
         t = temps[_pick(tw, rng)]
         if _is_multiview(t):
@@ -186,6 +180,30 @@ def _generate(frames: list[Frame], idxs: list[SceneIndex], sample_rng: np.random
         from refspatial_gen.qa.pointdepth import point_depth_qa
         out += point_depth_qa(frames, sample_rng, min(config.point_depth, config.max_per_sample - len(out)), len(out))
     return out
+
+
+_FAMILY_PLANS: dict[tuple[int, int], tuple] = {}
+
+
+def _family_choices(fam: Any, config: QAConfig, exhausted: set[int], multiview: bool) -> tuple[list, list]:
+    """The family's templates a draw may pick now, with their weights (template weight x step mix): those with
+    positive weight, not exhausted in this sample, multi-view ones only when a view pair is still wanted.
+    The unfiltered lists are computed once per (family, config)."""
+    key = (id(fam), id(config))
+    plan = _FAMILY_PLANS.get(key)
+    if plan is None or plan[0] is not fam or plan[1] is not config:
+        mix = config.step_mix
+        temps = [t for t in fam.templates if t.weight > 0]
+        plan = (fam, config, temps, [t.weight * mix.get(t.n_steps, 1.0 if not mix else 0.0) for t in temps],
+                [_is_multiview(t) for t in temps])
+        if len(_FAMILY_PLANS) > 256:
+            _FAMILY_PLANS.clear()
+        _FAMILY_PLANS[key] = plan
+    _, _, temps, weights, multi = plan
+    if multiview and not exhausted:
+        return temps, weights
+    keep = [k for k, t in enumerate(temps) if id(t) not in exhausted and (multiview or not multi[k])]
+    return [temps[k] for k in keep], [weights[k] for k in keep]
 
 
 def _pick(weights: list[float], rng: np.random.Generator) -> int:
@@ -537,8 +555,6 @@ def _build(t: Template, env: dict, ans: Any, ctx: Context, rng: np.random.Genera
     else:
         instr_seq = None
     variant = t.texts[int(rng.integers(len(t.texts)))]
-    from refspatial_gen.qa.text import placeholders
-
     ph = placeholders(variant)
     rend = _Renderer(t, env, ctx, rng, choices_text, "")
     if instr_seq is not None:
@@ -586,64 +602,97 @@ def _check_key_phrases(key_steps: list[KeyStep], struct: dict, targets: list[int
         raise Reject("unnamed_key_step")
 
 
+class _KeyPlan(NamedTuple):
+    """What _key_steps reads of one step, resolved once per template."""
+
+    step: Any
+    rel_literal: Any  # the relation when the program fixes it
+    rel_slot: str | None  # the slot/step holding the relation otherwise
+    single: tuple  # env names of single-object arguments (anchor, a, b, of, to), in that order
+    lists: tuple  # env names inside list arguments (anchors, options)
+    orient_a: str | None  # compare on an orientation relation: its `a` argument
+    measure: tuple | None  # (quantity, names of of/to, reads the previous step)
+    choose_marks: str | None  # choose over drawn marks: the mark step's name
+
+
+def _key_plan(t: Template) -> tuple:
+    plan = t.__dict__.get("_key_plan")
+    if plan is not None:
+        return plan
+    out = []
+    for st in t.steps:
+        a = st.args
+        r = a.get("relation")
+        lit = r.value if r is not None and r.kind == "literal" else None
+        slot = r.value if r is not None and r.kind != "literal" else None
+        single = tuple(a[k].value for k in ("anchor", "a", "b", "of", "to")
+                       if a.get(k) is not None and a[k].kind in ("slot", "step"))
+        lists = tuple(x.value for k in ("anchors", "options") if a.get(k) is not None and a[k].kind == "list"
+                      for x in a[k].value)
+        orient_a = a["a"].value if st.op == "compare" else None
+        measure = None
+        if st.op == "measure":
+            measure = (a["quantity"].value, tuple(a[k].value for k in ("of", "to") if k in a), "of" not in a)
+        marks = a["options"].value if st.op == "choose" and a["options"].kind == "step" else None
+        out.append(_KeyPlan(st, lit, slot, single, lists, orient_a, measure, marks))
+    plan = t.__dict__["_key_plan"] = tuple(out)
+    return plan
+
+
 def _key_steps(t: Template, env: dict, ans: Any, ctx: Context) -> list[KeyStep]:
     """One perceptual step per object the reasoning looks at, in program order, then the answer."""
     idx = ctx.idx
     out: list[KeyStep] = []
     done: set = set()
+    phrase_of = idx.phrase
+
+    def name(o: int) -> str:
+        return phrase_of.get(o) or f"the target {idx.category[o]}"
 
     def pos(o: int, phrase: str | None = None) -> None:
-        ph = phrase or idx.phrase.get(o) or f"the target {idx.category[o]}"
+        ph = phrase or phrase_of.get(o) or f"the target {idx.category[o]}"
         if ("P", ph) not in done:
             done.add(("P", ph))
-            out.append(KeyStep("Position", ph, round_key(idx.point(o))))
+            out.append(KeyStep("Position", ph, idx.key_point(o)))
 
     def size(o: int) -> None:
-        ph = idx.phrase.get(o) or f"the target {idx.category[o]}"
+        ph = name(o)
         if ("S", ph) not in done:
             done.add(("S", ph))
             out.append(KeyStep("Size", ph, round_key(idx.size(o))))
 
     def orient(o: int) -> None:
-        ph = idx.phrase.get(o) or f"the target {idx.category[o]}"
+        ph = name(o)
         if ("O", ph) not in done:
             done.add(("O", ph))
             out.append(KeyStep("Orientation", ph, round_key(idx.front_cam(o))))
 
-    def objs(st) -> list[int]:
-        res = []
-        for k in ("anchor", "a", "b", "of", "to"):
-            r = st.args.get(k)
-            if r is not None and r.kind in ("slot", "step"):
-                res.append(_one(env[r.value]))
-        for k in ("anchors", "options"):
-            r = st.args.get(k)
-            if r is not None and r.kind == "list":
-                res.extend(env[x.value] for x in r.value)
-        return res
-
-    final_orient: list[int] = []
-    for st in t.steps:
-        rel = None
-        if "relation" in st.args:
-            r = st.args["relation"]
-            rel = r.value if r.kind == "literal" else env[r.value]
-        if st.op == "mark":
-            for i, o in enumerate(env[st.name]):
-                pass  # marks are located below in label order (after shuffling, labels follow the mark order)
-        for o in objs(st):
+    size_rels, orient_rels = ops.SIZE_RELATIONS, ops.ORIENTATION_RELATIONS
+    final_orient = False
+    steps = t.steps
+    for kp in _key_plan(t):
+        rel = kp.rel_literal if kp.rel_slot is None else env[kp.rel_slot]
+        sized = rel in size_rels
+        for nm in kp.single:
+            o = _one(env[nm])
             pos(o)
-            if rel in ops.SIZE_RELATIONS:
+            if sized:
                 size(o)
-        if st.op == "compare" and rel in ops.ORIENTATION_RELATIONS:
-            orient(_one(env[st.args["a"].value]))
-        if st.op == "relate" and rel in ops.ORIENTATION_RELATIONS:
-            final_orient.append(-1)
-        if st.op == "measure":
-            q = st.args["quantity"].value
-            targets = [_one(env[st.args[k].value]) for k in ("of", "to") if k in st.args]
-            if "of" not in st.args:
-                prev = env[t.steps[st.index - 1].name]
+        for nm in kp.lists:
+            o = env[nm]
+            pos(o)
+            if sized:
+                size(o)
+        op = kp.step.op
+        if kp.orient_a is not None and rel in orient_rels:
+            orient(_one(env[kp.orient_a]))
+        if op == "relate" and rel in orient_rels:
+            final_orient = True
+        if kp.measure is not None:
+            q, names, from_prev = kp.measure
+            targets = [_one(env[nm]) for nm in names]
+            if from_prev:
+                prev = env[steps[kp.step.index - 1].name]
                 targets.insert(0, next(iter(prev)) if isinstance(prev, frozenset) else prev)
             for o in targets:
                 if q in ("height", "width"):
@@ -652,17 +701,16 @@ def _key_steps(t: Template, env: dict, ans: Any, ctx: Context) -> list[KeyStep]:
                     orient(o)
                 else:
                     pos(o)
-        if st.op == "choose" and st.args["options"].kind == "step":
-            marks = env[st.args["options"].value]
-            for i, o in enumerate(marks):
+        if kp.choose_marks is not None:
+            for i, o in enumerate(env[kp.choose_marks]):
                 pos(o, f"the object marked ({LETTERS[i]})")
-                if rel in ops.SIZE_RELATIONS:
+                if sized:
                     size(o)
     if isinstance(ans, PointValue):
         if ans.region is not None:
             r = ans.region
             out.append(KeyStep("Position", f"the free space {r.kind.replace('_', ' ')} "
-                               + " and ".join(idx.phrase.get(a, str(a)) for a in r.anchors if a in idx.phrase)
+                               + " and ".join(phrase_of.get(a, str(a)) for a in r.anchors if a in phrase_of)
                                if r.kind in ops.FREE_KINDS else f"the free space at the {r.label}",
                                round_key(ans.point)))
         else:

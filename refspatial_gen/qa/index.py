@@ -9,10 +9,13 @@ storage and mirror conventions); this module adds no geometry of relations.
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
+from itertools import accumulate
 from typing import NamedTuple
 
 import numpy as np
 
+from refspatial_gen.core.mask import denormalise_point
 from refspatial_gen.core.model import FreeSpaceRegion, Frame, SceneGraph
 from refspatial_gen.graph.relations.base import decide
 
@@ -93,8 +96,9 @@ class SceneIndex:
         self._dist: list | None = None
         self._derived: dict[str, tuple | None] = {}
         self._pairs: dict[str, tuple] = {}
-        self._runs: dict[int, np.ndarray] = {}
+        self._runs: dict[int, list[int]] = {}
         self._sizes: dict[int, tuple[float, float, float]] = {}
+        self._key_points: dict[int, list[float]] = {}
         # executor: slot signature (executor.slot_signature) -> unshuffled candidates in this frame
         self.slot_memo: dict[tuple, tuple] = {}
         self.by_category: dict[str, frozenset[int]] = {
@@ -407,19 +411,22 @@ class SceneIndex:
 
     def point_in_mask(self, object_id: int, point: tuple[float, float]) -> bool:
         """Is the pixel a normalised point falls in part of the object's visible mask (RLE, no decode)."""
-        from refspatial_gen.core.mask import denormalise_point
-
         o = self.objects.get(object_id)
         if o is None or o.mask is None:
             return False
         runs = self._runs.get(object_id)
         if runs is None:
-            runs = np.cumsum(np.asarray(o.mask.counts, dtype=np.int64))
-            self._runs[object_id] = runs
+            runs = self._runs[object_id] = list(accumulate(o.mask.counts))  # run ends, column-major
         x, y = denormalise_point(point[0], point[1], self.W, self.H)
-        flat = x * o.mask.height + y  # column-major
-        k = int(np.searchsorted(runs, flat, side="right"))
-        return k % 2 == 1
+        return bisect_right(runs, x * o.mask.height + y) % 2 == 1
+
+    def key_point(self, object_id: int) -> list[float]:
+        """The object's answer point rounded as key steps store it (render.round_key), a fresh list each call."""
+        p = self._key_points.get(object_id)
+        if p is None:
+            x, y = self.point(object_id)
+            p = self._key_points[object_id] = [round(x, 3), round(y, 3)]
+        return list(p)
 
     def size(self, object_id: int) -> tuple[float, float, float]:
         """(larger horizontal extent, smaller horizontal extent, height) in metres, from the 3D box: the

@@ -63,8 +63,10 @@ def between_arrays(xy: np.ndarray, ids: np.ndarray, categories: list[str], dist:
     dist = np.asarray(dist, float)
     clear = (dist[:, B].T > 1e-6) & (dist[:, C].T > 1e-6)
     # a second object of A's category also (possibly) between B and C makes A ambiguous
-    cat = np.unique(np.asarray(categories, dtype=object).astype(str), return_inverse=True)[1].reshape(n)
-    same = (cat[:, None] == cat[None, :]) & ~np.eye(n, dtype=bool)
+    labels: dict[str, int] = {}
+    cat = np.array([labels.setdefault(str(c), len(labels)) for c in categories])
+    same = cat[:, None] == cat[None, :]
+    np.fill_diagonal(same, False)
     ambiguous = (cand.astype(np.int64) @ same.astype(np.int64)) > 0
     code = np.where(yes & clear & ~ambiguous, TRUE, UNDECIDED)
     return B, C, cand, code, t
