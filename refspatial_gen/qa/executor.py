@@ -107,6 +107,10 @@ def _winner(cands, rel: str, anchor: int | None, idx: SceneIndex) -> int:
     cands = sorted(cands)
     if not cands:
         raise Reject("empty")
+    if (rel == "close" or rel == "far") and anchor is not None:
+        d = idx.distances_to(anchor, cands)
+        if d is not None:
+            return _nearest_winner(cands, d, rel == "far", idx.distance_margin)
     # a quick elimination pass finds the only possible winner, then it is checked against everyone
     best = cands[0]
     for y in cands[1:]:
@@ -130,6 +134,20 @@ def _winner(cands, rel: str, anchor: int | None, idx: SceneIndex) -> int:
     if undecided:
         raise Reject("margin")
     return best
+
+
+def _nearest_winner(cands: list, d: list, farthest: bool, margin: float) -> int:
+    """_winner for close/far from the distances of the candidates to the anchor: close(x, y, c) holds when
+    d(y, c) - d(x, c) > margin (far: the other way round), so the winner is the nearest (farthest) candidate,
+    and it wins only if it beats the runner-up by more than the margin. Same answer as the pairwise rule."""
+    if len(cands) == 1:
+        return cands[0]
+    k = max(range(len(d)), key=d.__getitem__) if farthest else min(range(len(d)), key=d.__getitem__)
+    best = d[k]
+    gap = min((best - v) if farthest else (v - best) for i, v in enumerate(d) if i != k)
+    if gap > margin:
+        return cands[k]
+    raise Reject("margin" if gap >= -margin else "no_winner")
 
 
 def _op_filter(st: Step, env: dict[str, Any], prev: Any, ctx: Context) -> Any:

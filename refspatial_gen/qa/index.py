@@ -30,6 +30,7 @@ _PAIR_OF = {"left": ("left", False), "right": ("left", True), "front": ("front",
             "above_image": ("above_image", False), "below_image": ("above_image", True),
             "above_world": ("above_world", False), "below_world": ("above_world", True)}
 _MISS = object()
+_EMPTY: frozenset = frozenset()
 _INF = float("inf")
 _HOLDS = (False, True, None, None)  # holds by table code (1 true, 0 false, 2 undecided; 3 = not stored)
 # stored-sparse binary relations whose whole table the index builds from the stored facts (absent-instance
@@ -109,7 +110,7 @@ class SceneIndex:
 
     # ------------------------------------------------------------------ facts
     def _derived_tables(self, base: str) -> tuple[list, list, list] | None:
-        """(code rows, holds rows, value rows) of a size comparison over self.ids, with the graph's own decision
+        """(code rows, None, value rows) of a size comparison over self.ids, with the graph's own decision
         function on the stored node attributes (what GraphIndex derives one pair at a time; a test pins the
         equality). None without gravity or thresholds."""
         if base not in self._derived:
@@ -122,13 +123,12 @@ class SceneIndex:
                 attr, abs_name, rel_name = DERIVED[base]
                 q = np.array([self.nodes[i].attributes[attr] for i in ids], float)
                 v, codes, m = compare(q, getattr(th, abs_name) if abs_name else 0.0, getattr(th, rel_name))
-                codes = np.asarray(codes).astype(int)
-                ours = np.where(codes == UNDECIDED, 2, np.where(codes == TRUE, 1, 0)).astype(np.int8)
+                # graph codes TRUE 1 / FALSE 0 / UNDECIDED -1 -> ours 1 / 0 / 2 (floor modulo 3)
+                assert (TRUE, UNDECIDED) == (1, -1)
+                ours = np.mod(np.asarray(codes, dtype=np.int8), 3)
                 np.fill_diagonal(ours, 3)
-                rows = ours.tolist()
-                hs = [[_HOLDS[c] for c in row] for row in rows]
                 vs = np.asarray(v, dtype=float).tolist()  # python floats: same values, no per-element numpy
-                out = (rows, hs, vs)
+                out = (ours.tolist(), None, vs)
             self._derived[base] = out
         return self._derived[base]
 
@@ -176,7 +176,7 @@ class SceneIndex:
                 a, b = args[::-1] if base[1] else args
                 i, j = pos.get(a), pos.get(b)
                 if i is not None and j is not None and i != j:
-                    out = Fact(tab[1][i][j], tab[2][i][j])
+                    out = Fact(_HOLDS[tab[0][i][j]], tab[2][i][j])
             self._fact_cache[key] = out
             return out
         if (relation == "corner" or relation == "edge") and len(args) == 3:
@@ -274,6 +274,31 @@ class SceneIndex:
         v = dbc - dac
         return Fact(decide(v, self.gindex.th.distance_margin), v)
 
+    @property
+    def distance_margin(self) -> float:
+        return self.gindex.th.distance_margin
+
+    def distances_to(self, anchor: int, objects: list) -> list[float] | None:
+        """Stored distances of `objects` to `anchor` (the ones close/far compare), or None when close/far would
+        not come from them (no gravity, an unknown or repeated object, a missing distance): the caller then
+        takes the fact-by-fact path."""
+        if not self.gindex.world or type(anchor) is not int or anchor not in self._pos:
+            return None
+        d = self._dist
+        if d is None:
+            d = self._dist = self.gindex._distance_matrix().tolist()
+        pos, c = self._pos, self._pos[anchor]
+        out = []
+        for x in objects:
+            i = pos.get(x) if type(x) is int else None
+            if i is None or i == c:
+                return None
+            v = d[i][c]
+            if v == _INF:
+                return None
+            out.append(v)
+        return out
+
     def holds(self, relation: str, args: tuple) -> bool:
         """True/False; raises Reject("margin") when undecided and Reject("no_fact") when not evaluated."""
         f = self.fact(relation, args)
@@ -306,9 +331,14 @@ class SceneIndex:
     def _entry_of(self, relation: str, anchor: int, codes: list | None) -> tuple[frozenset, frozenset, frozenset]:
         """One anchor's entry, from a row of holds codes (1 true, 0 false, 2 undecided, 3 not stored) over
         self.ids, or fact by fact when `codes` is None; a code 3 asks fact() (the general path decides)."""
+        ids = self.ids
+        if codes is not None:
+            k = self._pos[anchor]
+            if 2 not in codes and codes.count(3) == (codes[k] == 3):  # only true/false off the anchor: one pass
+                return frozenset([x for x, c in zip(ids, codes) if c == 1 and x != anchor]), _EMPTY, _EMPTY
         true, undecided, missing = [], [], []
         cache, fact = self._fact_cache, self.fact
-        for k, x in enumerate(self.ids):
+        for k, x in enumerate(ids):
             if x == anchor:
                 continue
             c = 3 if codes is None else codes[k]
