@@ -167,3 +167,87 @@ def test_spot_facts_match_graph_index(scenes):
                     assert (got.holds, got.value) == (want.holds, float(want.value)), (kind, a, sid, label)
                     seen[want.holds] += 1
     assert seen[False] and seen["absent"] and (seen[True] or seen[None])
+
+
+def test_close_far_winner_matches_pairwise_rule(scenes, monkeypatch):
+    """Superlatives on close/far decide from the distances to the anchor; the pairwise elimination (facts one
+    pair at a time) gives the same winner, or rejects too, for every anchor and candidate set tried."""
+    from itertools import combinations
+
+    from refspatial_gen.qa.executor import _winner
+
+    outcomes = {"winner": 0, "reject": 0}
+    for f, g in scenes:
+        idx = SceneIndex(f, g)
+        for anchor in idx.ids:
+            others = [x for x in idx.ids if x != anchor]
+            for k in (1, 2, 3, len(others)):
+                for cands in combinations(others, k):
+                    for rel in ("close", "far"):
+                        try:
+                            fast = _winner(list(cands), rel, anchor, idx)
+                        except Reject:
+                            fast = "reject"
+                        with monkeypatch.context() as mp:
+                            mp.setattr(idx, "distances_to", lambda *a: None)  # force the pairwise path
+                            try:
+                                slow = _winner(list(cands), rel, anchor, idx)
+                            except Reject:
+                                slow = "reject"
+                        assert fast == slow, (rel, anchor, cands)
+                        outcomes["reject" if fast == "reject" else "winner"] += 1
+    assert outcomes["winner"] > 100 and outcomes["reject"] > 10
+
+
+def test_distance_matrix_matches_pairwise_lookup(scenes):
+    """The one-pass stored-distance matrix equals the pair-by-pair lookup (either storage direction)."""
+    for f, g in scenes:
+        gi = GraphIndex(g, f)
+        d = gi._distance_matrix()
+        for i, a in enumerate(gi.ids):
+            for j, b in enumerate(gi.ids):
+                want = 0.0 if a == b else gi._distance(a, b)
+                assert d[i, j] == (np.inf if want is None else want)
+
+
+def test_point_in_mask_matches_decoded_mask(scenes):
+    """The RLE point test (bisect over run ends) agrees with the decoded mask on a grid of points."""
+    from refspatial_gen.core.mask import normalise_point
+
+    f, g = scenes[0]
+    idx = SceneIndex(f, g)
+    inside = 0
+    for o in f.objects:
+        m = o.mask.decode()
+        for y in range(0, m.shape[0], 7):
+            for x in range(0, m.shape[1], 7):
+                p = normalise_point(x, y, idx.W, idx.H)
+                assert idx.point_in_mask(o.id, p) == bool(m[y, x]), (o.id, x, y)
+                inside += bool(m[y, x])
+    assert inside > 0
+
+
+def test_replay_with_compiled_steps_matches_interpreter(scenes, monkeypatch):
+    """The degeneracy check replays programs with the compiled steps; the interpreter gives the same verdicts."""
+    import refspatial_gen.qa.compiled as compiled_mod
+    from refspatial_gen.qa.bench import default_config
+    from refspatial_gen.qa.executor import Context, Search, degenerate_steps
+
+    cfg = default_config()
+    checked = bad = 0
+    for f, g in scenes[:3]:
+        idx = SceneIndex(f, g)
+        for fam in cfg.families:
+            for t in fam.templates:
+                if any(st.op == "camera_turn" for st in t.steps):
+                    continue
+                ctx = Context(idx, np.random.default_rng(1))
+                for env in list(Search(t, ctx, 300).instances())[:15]:
+                    fast = degenerate_steps(t, env, ctx)
+                    with monkeypatch.context() as mp:
+                        mp.setattr(compiled_mod, "compiled", lambda t: [compiled_mod._generic(st) for st in t.steps])
+                        slow = degenerate_steps(t, env, ctx)
+                    assert fast == slow, (t.name, env)
+                    checked += 1
+                    bad += bool(fast)
+    assert checked > 200 and bad > 0  # degenerate instances were among those compared

@@ -18,6 +18,7 @@ import numpy as np
 from refspatial_gen.core.model import FreeSpaceRegion
 from refspatial_gen.qa import ops
 from refspatial_gen.qa.index import Reject, SceneIndex
+from refspatial_gen.qa.sample_rng import SampleRng
 from refspatial_gen.qa.templates import Ref, Step, Template
 
 TURN_MARGIN = math.radians(5.0)  # a camera turn smaller than this between two views is not asked about
@@ -48,7 +49,7 @@ class Context:
     """What a program may read besides the frame's index: the other frame of a multi-view pair."""
 
     idx: SceneIndex
-    rng: np.random.Generator
+    rng: "np.random.Generator | SampleRng"  # generation passes the sample's SampleRng
     second: SceneIndex | None = None
     prune: bool = True  # early-pruning bounds on (off when replaying a program for the degeneracy check)
 
@@ -577,10 +578,12 @@ def replay(t: Template, env: dict[str, Any], ctx: Context, drop: int | None = No
     input set (an answer only if it holds one object); removing a compare drops it from its `all`, or
     leaves no answer when it was the answer itself. Raises Reject when there is no answer.
     """
+    from refspatial_gen.qa.compiled import compiled
+
     local = {k: v for k, v in env.items() if k in t.slots}
     ctx = Context(ctx.idx, ctx.rng, ctx.second, prune=False)
     prev = None
-    for st in t.steps:
+    for st, fn in zip(t.steps, compiled(t)):
         if st.index == drop:
             if st.op in ("relate", "between", "at"):
                 val = _set_in(st, local, prev, ctx.idx)
@@ -599,7 +602,9 @@ def replay(t: Template, env: dict[str, Any], ctx: Context, drop: int | None = No
         elif st.op == "mark":
             val = env[st.name]  # the drawn marks are part of the question
         else:
-            val = run_step(st, local, prev, ctx)
+            val = fn(local, prev, ctx)  # the compiled step (the same result as run_step; a test pins it)
+            if val.__class__ is Reject:
+                raise Reject(val.reason)  # a fresh exception: the returned one may be a shared constant
         if val is None and st is t.steps[-1]:
             raise Reject("empty")
         local[st.name] = val

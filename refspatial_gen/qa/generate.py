@@ -83,7 +83,7 @@ class Balancer:
         self.quadrants = [0, 0, 0, 0]
         self._allowed: dict[tuple, frozenset | None] = {}
 
-    def want_bool(self, rng: np.random.Generator) -> bool:
+    def want_bool(self, rng: SampleRng) -> bool:
         if self.yes_no[0] != self.yes_no[1]:
             return self.yes_no[0] < self.yes_no[1]  # index 0 counts "yes"
         return bool(rng.integers(2))
@@ -206,7 +206,7 @@ def _family_choices(fam: Any, config: QAConfig, exhausted: set[int], multiview: 
     return [temps[k] for k in keep], [weights[k] for k in keep]
 
 
-def _pick(weights: list[float], rng: np.random.Generator) -> int:
+def _pick(weights: list[float], rng: SampleRng) -> int:
     """Index drawn with probability proportional to its weight (cheaper than rng.choice with p=)."""
     total = sum(weights)
     r = rng.random() * total
@@ -226,7 +226,7 @@ def _is_multiview(t: Template) -> bool:
     return v
 
 
-def _instantiate(t: Template, ctx: Context, rng: np.random.Generator, config: QAConfig, bal: Balancer,
+def _instantiate(t: Template, ctx: Context, rng: SampleRng, config: QAConfig, bal: Balancer,
                  seen: set, frame_ids: list[str], qa_id: str, flip: bool = False) -> QAPair | None:
     want = bal.want_bool(rng) if t.answer_type == ops.BOOL else None
     if flip and want is not None:
@@ -326,7 +326,7 @@ def _plural(word: str) -> str:
 
 
 class _Renderer:
-    def __init__(self, t: Template, env: dict, ctx: Context, rng: np.random.Generator, choices: str,
+    def __init__(self, t: Template, env: dict, ctx: Context, rng: SampleRng, choices: str,
                  instruction: str) -> None:
         self.t, self.env, self.ctx, self.rng = t, env, ctx, rng
         self.choices, self.instruction = choices, instruction
@@ -465,7 +465,7 @@ def _build_plan(t: Template) -> _BuildPlan:
     return plan
 
 
-def _build(t: Template, env: dict, ans: Any, ctx: Context, rng: np.random.Generator, frame_ids: list[str],
+def _build(t: Template, env: dict, ans: Any, ctx: Context, rng: SampleRng, frame_ids: list[str],
            qa_id: str) -> QAPair:
     idx = ctx.idx
     plan = _build_plan(t)

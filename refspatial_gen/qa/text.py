@@ -2,7 +2,8 @@
 
 Why a tiny grammar of our own: recipe authors write many phrasings in one line, and the compiler must
 know every placeholder a variant uses (an unknown one is a load-time error, not a KeyError at run time).
-A text compiles once to a tree; rendering walks it with the sample's numpy Generator.
+A text compiles once to a tree; rendering walks it with the sample's generator (qa.sample_rng.SampleRng in
+generation; anything with integers(n) and random()).
 """
 
 from __future__ import annotations
