@@ -1,9 +1,9 @@
 """Per-frame lookup tables the executor needs, built once per (frame, scene graph).
 
 Why: instantiating templates is thousands of small lookups (is the cup left of the plate? which objects
-are boxes?). Doing them against dicts prepared once keeps generation above 5,000 QA pairs/s. Relation
-truth comes only from the scene graph's facts (through the graph's own query index, which knows the
-storage and mirror conventions); this module adds no geometry of relations.
+are boxes?). Doing them against tables prepared once per sample is most of the engine's speed (figures
+in docs/templates.md). Relation truth comes only from the scene graph's facts (through the graph's own
+query index, which knows the storage and mirror conventions); this module adds no geometry of relations.
 """
 
 from __future__ import annotations
