@@ -19,7 +19,7 @@ from refspatial_gen.graph.constants import Thresholds
 from refspatial_gen.graph.relations import REGISTRY
 from refspatial_gen.graph.relations.base import decide
 from refspatial_gen.graph.relations.common import TRUE, UNDECIDED, holds_of
-from refspatial_gen.graph.relations.containment import between_arrays, table_from_arrays
+from refspatial_gen.graph.relations.containment import between_arrays
 from refspatial_gen.graph.relations.orientation import SECTORS, angle_between, bearings, sector_codes
 from refspatial_gen.graph.relations.sizes import DERIVED, compare
 
@@ -41,12 +41,12 @@ class GraphIndex:
         self.th = Thresholds(**graph.meta["thresholds"]) if "thresholds" in graph.meta else None
         self.world = bool(graph.meta.get("world_relations", False))
         self.surfaces: dict[str, dict] = graph.meta.get("surfaces", {})
-        self._between: dict | None = None
         self._dist: np.ndarray | None = None
         self._pos: dict[int, int] = {x: k for k, x in enumerate(self.ids)}  # id -> row of the derived tables
         self._barr = _UNSET
         self._bpairs: dict | None = None
         self._bmasks: tuple = ([], [])
+        self._bcells: tuple = ([], [], [])  # per anchor pair row: candidate mask, code, t (python lists)
         self._brow: dict[tuple[int, int], tuple[frozenset, frozenset]] = {}
 
     # ------------------------------------------------------------------ nodes
@@ -240,9 +240,10 @@ class GraphIndex:
             self._bpairs, self._bmasks = {}, ([], [])
             if arr is not None:
                 ids = self.ids
-                B, C, cand, code, _t = arr
+                B, C, cand, code, t = arr
                 self._bpairs = {(ids[b], ids[c]): p for p, (b, c) in enumerate(zip(B.tolist(), C.tolist()))}
                 self._bmasks = ((cand & (code == TRUE)).tolist(), (cand & (code == UNDECIDED)).tolist())
+                self._bcells = (cand.tolist(), code.tolist(), t.tolist())
         return self._bpairs
 
     def _between_arrays(self):
@@ -258,20 +259,18 @@ class GraphIndex:
 
     def between_code(self, a: int, b: int, c: int) -> tuple[bool | None, float]:
         """(holds, t) of between(a, b, c) for three distinct known ids, without building a RelationFact
-        (the QA index's hot path; same table and rule as _between_fact)."""
-        table = self._between_table()
-        pos = self._pos
-        i, j, k = pos[int(a)], pos[int(b)], pos[int(c)]
-        if j > k:
-            j, k = k, j
-        code, t = table.get((i, j, k), (0, 0.0))
-        return holds_of(code), t
-
-    def _between_table(self) -> dict:
-        """between_table over the stored node centres and distances, built once (positions in self.ids)."""
-        if self._between is None:
-            self._between = table_from_arrays(self._between_arrays())
-        return self._between
+        (the QA index's hot path; the same arrays and rule as between_table: an object off the anchor
+        pair's candidate mask is False with t = 0)."""
+        pairs = self._between_pairs()
+        b, c = int(b), int(c)
+        p = pairs.get((b, c) if b < c else (c, b))
+        if p is None:
+            return False, 0.0
+        i = self._pos[int(a)]
+        cand, code, t = self._bcells
+        if not cand[p][i]:
+            return False, 0.0
+        return holds_of(code[p][i]), t[p][i]
 
     def _between_fact(self, a, b, c) -> RelationFact | None:
         h, t = self.between_code(a, b, c)

@@ -334,8 +334,11 @@ class SceneIndex:
         ids = self.ids
         if codes is not None:
             k = self._pos[anchor]
-            if 2 not in codes and codes.count(3) == (codes[k] == 3):  # only true/false off the anchor: one pass
-                return frozenset([x for x, c in zip(ids, codes) if c == 1 and x != anchor]), _EMPTY, _EMPTY
+            if codes.count(3) == (codes[k] == 3):  # no off-anchor code asks the general path: comprehensions
+                t = frozenset([x for x, c in zip(ids, codes) if c == 1 and x != anchor])
+                if 2 not in codes:
+                    return t, _EMPTY, _EMPTY
+                return t, frozenset([x for x, c in zip(ids, codes) if c == 2 and x != anchor]), _EMPTY
         true, undecided, missing = [], [], []
         cache, fact = self._fact_cache, self.fact
         for k, x in enumerate(ids):
