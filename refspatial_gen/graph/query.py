@@ -28,6 +28,7 @@ SYMMETRIC_STORED = {"distance", "touching", "far_from", "next_to"}
 
 
 _UNSET = object()  # not computed yet (between_arrays itself may return None)
+_EMPTY_ROW: tuple[frozenset, frozenset] = (frozenset(), frozenset())
 
 class GraphIndex:
     """Index over one SceneGraph. `frame` is optional (only needed by callers that want pixels)."""
@@ -42,10 +43,10 @@ class GraphIndex:
         self.world = bool(graph.meta.get("world_relations", False))
         self.surfaces: dict[str, dict] = graph.meta.get("surfaces", {})
         self._dist: np.ndarray | None = None
+        self._by_rel: dict[str, list] | None = None
         self._pos: dict[int, int] = {x: k for k, x in enumerate(self.ids)}  # id -> row of the derived tables
         self._barr = _UNSET
         self._bpairs: dict | None = None
-        self._bmasks: tuple = ([], [])
         self._bcells: tuple = ([], [], [])  # per anchor pair row: candidate mask, code, t (python lists)
         self._brow: dict[tuple[int, int], tuple[frozenset, frozenset]] = {}
 
@@ -183,6 +184,15 @@ class GraphIndex:
             return RelationFact(relation, args, False, 0.0, self.th.free_min_area)
         return self._facts.get(key)
 
+    def facts_of(self, relation: str) -> list[RelationFact]:
+        """The stored facts of one relation, in storage order (all relations grouped in one pass, on first use)."""
+        if self._by_rel is None:
+            by: dict[str, list] = {}
+            for f in self.graph.facts:
+                by.setdefault(f.relation, []).append(f)
+            self._by_rel = by
+        return self._by_rel.get(relation, [])
+
     def _margin(self, relation: str) -> float:
         return {"touching": self.th.touch_band, "far_from": self.th.far_from_band,
                 "next_to": self.th.distance_margin}.get(relation, 0.0)
@@ -199,8 +209,9 @@ class GraphIndex:
             d = np.full((n, n), np.inf)
             np.fill_diagonal(d, 0.0)
             direct = []
-            for (rel, args), f in self._facts.items():
-                if rel == "distance" and len(args) == 2:
+            for f in self.facts_of("distance"):
+                args = f.args
+                if len(args) == 2:
                     i, j = pos.get(args[0]), pos.get(args[1])
                     if i is not None and j is not None and i != j:
                         direct.append((i, j, float(f.value)))
@@ -218,31 +229,26 @@ class GraphIndex:
         return {key: (t, u) for key, (t, u) in rows.items() if t or u}
 
     def between_row(self, b: int, c: int) -> tuple[frozenset, frozenset]:
-        """One entry of between_rows (b < c), built on first request: the QA index asks for a few anchor
-        pairs per frame, so the rows it never asks for are never built."""
-        row = self._brow.get((b, c))
-        if row is None:
-            pairs = self._between_pairs()
-            p = pairs.get((b, c))
-            if p is None:
-                row = (frozenset(), frozenset())
-            else:
-                ids, (yes, maybe) = self.ids, self._bmasks
-                row = (frozenset([ids[a] for a, ok in enumerate(yes[p]) if ok]),
-                       frozenset([ids[a] for a, ok in enumerate(maybe[p]) if ok]))
-            self._brow[(b, c)] = row
-        return row
+        """One entry of between_rows (b < c). Every anchor pair's row is built with the arrays (most rows
+        are empty and share one constant), so a search trying many anchor pairs pays a dict lookup each."""
+        self._between_pairs()
+        return self._brow.get((b, c), _EMPTY_ROW)
 
     def _between_pairs(self) -> dict[tuple[int, int], int]:
-        """(b, c) anchor ids -> row of the between arrays; also keeps the rows' true/undecided masks as lists."""
+        """(b, c) anchor ids -> row of the between arrays; also keeps the rows as sets (non-empty ones only)
+        and the cells as lists for between_code."""
         if self._bpairs is None:
             arr = self._between_arrays()
-            self._bpairs, self._bmasks = {}, ([], [])
+            self._bpairs = {}
             if arr is not None:
                 ids = self.ids
                 B, C, cand, code, t = arr
-                self._bpairs = {(ids[b], ids[c]): p for p, (b, c) in enumerate(zip(B.tolist(), C.tolist()))}
-                self._bmasks = ((cand & (code == TRUE)).tolist(), (cand & (code == UNDECIDED)).tolist())
+                keys = [(ids[b], ids[c]) for b, c in zip(B.tolist(), C.tolist())]
+                self._bpairs = {k: p for p, k in enumerate(keys)}
+                yes, maybe = cand & (code == TRUE), cand & (code == UNDECIDED)
+                id_arr = np.asarray(ids)
+                for p in np.flatnonzero(cand.any(axis=1)).tolist():
+                    self._brow[keys[p]] = (frozenset(id_arr[yes[p]].tolist()), frozenset(id_arr[maybe[p]].tolist()))
                 self._bcells = (cand.tolist(), code.tolist(), t.tolist())
         return self._bpairs
 

@@ -87,8 +87,11 @@ def _between(st: Step) -> StepFn | None:
         idx = ctx.idx
         s = prev if prev.__class__ is frozenset else idx.all
         t, u, m = idx.between_entry(env[bn], env[cn])
-        if (u and not u.isdisjoint(s)) or (m and not m.isdisjoint(s)):
-            return slow(env, prev, ctx)  # the reference path names the reason (first bad member)
+        if m:
+            if not m.isdisjoint(s) or (u and not u.isdisjoint(s)):
+                return slow(env, prev, ctx)  # the reference path names the reason (first bad member)
+        elif u and not u.isdisjoint(s):
+            return MARGIN  # every bad member is undecided (none lacks a fact): the reference says "margin"
         out = s & t
         n = len(out)
         if not n:

@@ -31,6 +31,7 @@ _PAIR_OF = {"left": ("left", False), "right": ("left", True), "front": ("front",
             "above_world": ("above_world", False), "below_world": ("above_world", True)}
 _MISS = object()
 _EMPTY: frozenset = frozenset()
+_EMPTY_ENTRY: tuple[frozenset, frozenset, frozenset] = (_EMPTY, _EMPTY, _EMPTY)
 _INF = float("inf")
 _HOLDS = (False, True, None, None)  # holds by table code (1 true, 0 false, 2 undecided; 3 = not stored)
 # stored-sparse binary relations whose whole table the index builds from the stored facts (absent-instance
@@ -91,7 +92,6 @@ class SceneIndex:
         self._fact_cache: dict[tuple, Fact | None] = {}
         self._rel_sets: dict[tuple, tuple[frozenset, frozenset, frozenset]] = {}
         self._cols: dict[str, list | None] = {}  # relation -> codes per anchor position (_table_cols)
-        self._by_rel: dict[str, list] | None = None
         self._codes: dict[str, list | None] = {}
         self._pos = {x: k for k, x in enumerate(self.ids)}
         self._dist: list | None = None
@@ -205,8 +205,7 @@ class SceneIndex:
                 and b in self.nodes and c in self.nodes:
             # whole row from the graph index's grouped table: a fact for every other object, absent = False
             t, u = self.gindex.between_row(b, c) if b < c else self.gindex.between_row(c, b)
-            entry = (t, u, frozenset())
-            self._rel_sets[key] = entry
+            entry = self._rel_sets[key] = (t, u, _EMPTY) if t or u else _EMPTY_ENTRY
         if entry is None:
             true, undecided, missing = set(), set(), set()
             for x in self.ids:
@@ -381,13 +380,8 @@ class SceneIndex:
         return mat if swap else [list(col) for col in zip(*mat)]
 
     def facts_of(self, relation: str) -> list:
-        """The graph's stored facts of one relation (grouped in one pass over all facts, on first use)."""
-        if self._by_rel is None:
-            by: dict[str, list] = {}
-            for f in self.graph.facts:
-                by.setdefault(f.relation, []).append(f)
-            self._by_rel = by
-        return self._by_rel.get(relation, [])
+        """The graph's stored facts of one relation (grouped once, by the graph index)."""
+        return self.gindex.facts_of(relation)
 
     def _sparse_codes(self, relation: str) -> list | None:
         """Code rows of a sparse stored relation (or outside = not inside) over self.ids, with GraphIndex._lookup's
