@@ -251,3 +251,20 @@ def test_replay_with_compiled_steps_matches_interpreter(scenes, monkeypatch):
                     checked += 1
                     bad += bool(fast)
     assert checked > 200 and bad > 0  # degenerate instances were among those compared
+
+
+def test_decision_from_tables_matches_fact_path(scenes):
+    """holds()/decision() answer binary relations from the relation tables; fact() (the stored facts through the
+    graph's rules) must agree on every ordered pair, undecided and missing instances included."""
+    from refspatial_gen.qa.index import NO_FACT
+
+    seen = {True: 0, False: 0, None: 0, "missing": 0}
+    for f, g in scenes:
+        idx, ref = SceneIndex(f, g), SceneIndex(f, g)  # ref: a fresh index asked through fact() only
+        for rel in RELATE_RELATIONS + ("distance", "angle", "on"):
+            for a, b in permutations(idx.ids + (10_000,), 2):
+                want = ref.fact(rel, (a, b))
+                got = idx.decision(rel, (a, b))
+                assert got is (NO_FACT if want is None else want.holds), (rel, a, b)
+                seen["missing" if want is None else want.holds] += 1
+    assert all(seen.values())

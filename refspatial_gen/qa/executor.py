@@ -17,7 +17,7 @@ import numpy as np
 
 from refspatial_gen.core.model import FreeSpaceRegion
 from refspatial_gen.qa import ops
-from refspatial_gen.qa.index import Reject, SceneIndex
+from refspatial_gen.qa.index import NO_FACT, Reject, SceneIndex
 from refspatial_gen.qa.sample_rng import SampleRng
 from refspatial_gen.qa.templates import Ref, Step, Template
 
@@ -113,24 +113,24 @@ def _winner(cands, rel: str, anchor: int | None, idx: SceneIndex) -> int:
         if d is not None:
             return _nearest_winner(cands, d, rel == "far", idx.distance_margin)
     # a quick elimination pass finds the only possible winner, then it is checked against everyone
+    decision = idx.decision
     best = cands[0]
     for y in cands[1:]:
-        f = idx.fact(rel, _binary_args(rel, best, y, anchor))
-        if f is None:
+        h = decision(rel, _binary_args(rel, best, y, anchor))
+        if h is NO_FACT:
             raise Reject("no_fact")
-        if f.holds is False or f.holds is None and idx.fact(rel, _binary_args(rel, y, best, anchor)) is not None \
-                and idx.fact(rel, _binary_args(rel, y, best, anchor)).holds is True:
+        if h is False or h is None and decision(rel, _binary_args(rel, y, best, anchor)) is True:
             best = y
     undecided = False
     for y in cands:
         if y == best:
             continue
-        f = idx.fact(rel, _binary_args(rel, best, y, anchor))
-        if f is None:
+        h = decision(rel, _binary_args(rel, best, y, anchor))
+        if h is NO_FACT:
             raise Reject("no_fact")
-        if f.holds is None:
+        if h is None:
             undecided = True
-        elif not f.holds:
+        elif not h:
             raise Reject("no_winner")
     if undecided:
         raise Reject("margin")
@@ -544,17 +544,13 @@ class Search:
                 for nm, v in zip(names, combo):
                     env[nm] = v
             self.budget -= 1
-            for _ in range(tries):
+            if tries == 1:  # the common case, without the retry loop
                 val = fn(env, prev, ctx)
                 if val.__class__ is Reject:
                     rejects[val.reason] = rejects.get(val.reason, 0) + 1
-                    if tries == 1:
-                        break
                     continue
                 if answers is not None and answers.isdisjoint(val):
                     rejects["balance"] = rejects.get("balance", 0) + 1
-                    if tries == 1:
-                        break
                     continue
                 env[out] = val
                 if nxt is not None:
@@ -563,7 +559,23 @@ class Search:
                     r = self._walk(i + 1, env, val, used.union([combo[k] for k in objs]) if objs else used)
                 if r is not None:
                     return r
-                if tries != 1 and self.budget <= 0:
+                continue
+            for _ in range(tries):
+                val = fn(env, prev, ctx)
+                if val.__class__ is Reject:
+                    rejects[val.reason] = rejects.get(val.reason, 0) + 1
+                    continue
+                if answers is not None and answers.isdisjoint(val):
+                    rejects["balance"] = rejects.get("balance", 0) + 1
+                    continue
+                env[out] = val
+                if nxt is not None:
+                    r = nxt(env)
+                else:
+                    r = self._walk(i + 1, env, val, used.union([combo[k] for k in objs]) if objs else used)
+                if r is not None:
+                    return r
+                if self.budget <= 0:
                     break
         env.pop(out, None)
         for nm in names:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from bisect import bisect_right
 from itertools import accumulate
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -30,6 +30,7 @@ _PAIR_OF = {"left": ("left", False), "right": ("left", True), "front": ("front",
             "above_image": ("above_image", False), "below_image": ("above_image", True),
             "above_world": ("above_world", False), "below_world": ("above_world", True)}
 _MISS = object()
+NO_FACT = object()  # decision(): the relation was not evaluated for these arguments
 _EMPTY: frozenset = frozenset()
 _EMPTY_ENTRY: tuple[frozenset, frozenset, frozenset] = (_EMPTY, _EMPTY, _EMPTY)
 _INF = float("inf")
@@ -298,14 +299,30 @@ class SceneIndex:
             out.append(v)
         return out
 
+    def decision(self, relation: str, args: tuple) -> Any:
+        """fact(relation, args).holds (True, False, None = undecided), or NO_FACT when it was not evaluated.
+        Binary relations with a whole table (the ones rel_entry reads) answer from the table without building
+        a Fact; tests pin the tables against the fact path."""
+        if len(args) == 2:
+            cols = self._cols.get(relation, _MISS)
+            if cols is _MISS:
+                cols = self._cols[relation] = self._table_cols(relation)
+            if cols is not None:
+                pos = self._pos
+                i, j = pos.get(args[1]), pos.get(args[0])  # cols[anchor][x] codes relation(x, anchor)
+                if i is not None and j is not None and i != j:
+                    c = cols[i][j]
+                    if c != 3:
+                        return _HOLDS[c]
+        f = self.fact(relation, args)
+        return NO_FACT if f is None else f.holds
+
     def holds(self, relation: str, args: tuple) -> bool:
         """True/False; raises Reject("margin") when undecided and Reject("no_fact") when not evaluated."""
-        f = self.fact(relation, args)
-        if f is None:
-            raise Reject("no_fact")
-        if f.holds is None:
-            raise Reject("margin")
-        return f.holds
+        h = self.decision(relation, args)
+        if h is True or h is False:
+            return h
+        raise Reject("margin" if h is None else "no_fact")
 
     def value(self, relation: str, args: tuple) -> float:
         f = self.fact(relation, args)
