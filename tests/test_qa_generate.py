@@ -169,18 +169,26 @@ templates:
 
 
 def test_undecided_relation_is_never_asked(scenes):
-    """Planting an undecided fact: the binding that needs it is rejected with reason 'margin'."""
-    f, g = scenes[1]
-    idx = scene_index(f, g)
-    a, b = idx.referable[:2]
-    from refspatial_gen.qa.index import Fact
+    """Planting an undecided stored fact: asking it is rejected with reason 'margin', both one pair at a time
+    (holds, through the relation table) and set-at-once (the relate step's entry lists it as undecided)."""
+    from refspatial_gen.core.model import RelationFact, SceneGraph
+    from refspatial_gen.qa.index import SceneIndex
 
-    idx._fact_cache[("left", (a, b))] = Fact(None, 0.001)
+    f, g = scenes[1]
+    g2 = SceneGraph.from_json(g.to_json())
+    a, b = sorted(n.object_id for n in g2.nodes if n.phrases and n.point is not None)[:2]
+    g2.facts = [x for x in g2.facts if not (x.relation == "left" and set(x.args) == {a, b})]
+    g2.facts.append(RelationFact("left", (a, b), None, 0.001, 0.01))
+    idx = SceneIndex(f, g2)
+    for args in ((a, b), (b, a)):
+        with pytest.raises(Reject) as e:
+            idx.holds("left", args)
+        assert e.value.reason == "margin"
+    t, u, m = idx.rel_entry("left", b)
+    assert a in u and a not in t
     with pytest.raises(Reject) as e:
-        idx.holds("left", (a, b))
+        idx.narrow("left", b, frozenset({a}))
     assert e.value.reason == "margin"
-    idx._fact_cache.clear()
-    idx._rel_sets.clear()
 
 
 def test_multiview_camera_turn(cfg):

@@ -34,7 +34,8 @@ NO_FACT = object()  # decision(): the relation was not evaluated for these argum
 _EMPTY: frozenset = frozenset()
 _EMPTY_ENTRY: tuple[frozenset, frozenset, frozenset] = (_EMPTY, _EMPTY, _EMPTY)
 _INF = float("inf")
-_HOLDS = (False, True, None, None)  # holds by table code (1 true, 0 false, 2 undecided; 3 = not stored)
+_HOLDS = (False, True, None, None)
+_PAIR_CODES = {True: (1, 0), False: (0, 1), None: (2, 2)}  # stored holds -> codes of (a, b) and (b, a)  # holds by table code (1 true, 0 false, 2 undecided; 3 = not stored)
 # stored-sparse binary relations whose whole table the index builds from the stored facts (absent-instance
 # rules of GraphIndex._lookup): symmetric ones are stored once per pair
 _SPARSE = frozenset({"inside", "facing", "facing_away", "far_from", "touching", "next_to"})
@@ -64,21 +65,35 @@ class SceneIndex:
 
         self.frame, self.graph = frame, graph
         self.W, self.H = frame.camera.width, frame.camera.height
-        self.nodes = {n.object_id: n for n in graph.nodes}
-        self.ids: tuple[int, ...] = tuple(sorted(self.nodes))
+        # one pass over the nodes fills the per-object tables (built for every sample: kept cheap)
+        nodes: dict = {}
+        phrase: dict[int, str] = {}
+        phrases: list[str] = []
+        points: dict[int, tuple[float, float]] = {}
+        category: dict[int, str] = {}
+        color: dict[int, str | None] = {}
+        on: dict[int, frozenset] = {}
+        for n in graph.nodes:
+            i = n.object_id
+            nodes[i] = n
+            if n.phrases:
+                phrase[i] = n.phrases[0]
+                phrases.extend(n.phrases)
+            if n.point is not None:
+                points[i] = (float(n.point[0]), float(n.point[1]))
+            category[i] = n.category
+            a = n.attributes
+            color[i] = a.get("color") or a.get("colour")
+            # "on the table": the root surface an object stands on (directly or stacked), or its direct support
+            on[i] = frozenset(x for x in (a.get("surface"), n.support) if x)
+        self.nodes, self.phrase, self.category, self.color, self.on = nodes, phrase, category, color, on
+        self.ids: tuple[int, ...] = tuple(sorted(nodes))
         self.objects = {o.id: o for o in frame.objects}
-        self.phrase: dict[int, str] = {i: n.phrases[0] for i, n in self.nodes.items() if n.phrases}
-        self.phrase_set = frozenset(p for n in graph.nodes for p in n.phrases)  # every phrase that names a node
-        # object -> answer point (normalised), for objects that have one
-        self.answer_points: dict[int, tuple[float, float]] = {
-            i: (float(n.point[0]), float(n.point[1])) for i, n in self.nodes.items() if n.point is not None}
-        self.referable: tuple[int, ...] = tuple(i for i in self.ids if i in self.phrase and self.nodes[i].point is not None)
-        self.category = {i: n.category for i, n in self.nodes.items()}
-        self.color = {i: (n.attributes.get("color") or n.attributes.get("colour")) for i, n in self.nodes.items()}
-        self.categories = tuple(sorted(set(self.category.values())))
-        self.colors = tuple(sorted({c for c in self.color.values() if c}))
-        # "on the table": the root surface an object stands on (directly or stacked), or its direct support
-        self.on = {i: frozenset(x for x in (n.attributes.get("surface"), n.support) if x) for i, n in self.nodes.items()}
+        self.phrase_set = frozenset(phrases)  # every phrase that names a node
+        self.answer_points = points  # object -> answer point (normalised), for objects that have one
+        self.referable: tuple[int, ...] = tuple(i for i in self.ids if i in phrase and i in points)
+        self.categories = tuple(sorted(set(category.values())))
+        self.colors = tuple(sorted({c for c in color.values() if c}))
         self.surfaces = {s.id: s for s in frame.surfaces}
         self.has_front = {i: (i in self.objects and self.objects[i].front is not None) for i in self.ids}
         self.regions: dict[tuple, FreeSpaceRegion] = {}
@@ -103,10 +118,12 @@ class SceneIndex:
         self._key_points: dict[int, list[float]] = {}
         # executor: slot signature (executor.slot_signature) -> unshuffled candidates in this frame
         self.slot_memo: dict[tuple, tuple] = {}
-        self.by_category: dict[str, frozenset[int]] = {
-            c: frozenset(i for i in self.ids if self.category[i] == c) for c in self.categories}
-        self.by_color: dict[str, frozenset[int]] = {
-            c: frozenset(i for i in self.ids if self.color[i] == c) for c in self.colors}
+        groups: dict = {}
+        for i in self.ids:
+            groups.setdefault(("category", category[i]), []).append(i)
+            groups.setdefault(("color", color[i]), []).append(i)
+        self.by_category: dict[str, frozenset[int]] = {c: frozenset(groups[("category", c)]) for c in self.categories}
+        self.by_color: dict[str, frozenset[int]] = {c: frozenset(groups[("color", c)]) for c in self.colors}
         self.all = frozenset(self.ids)
 
     # ------------------------------------------------------------------ facts
@@ -144,12 +161,11 @@ class SceneIndex:
             codes = [[3] * n for _ in range(n)]
             vals = [[0.0] * n for _ in range(n)]
             for f in self.facts_of(base):
-                if len(f.args) == 2:
-                    a, b = int(f.args[0]), int(f.args[1])
-                    if a in pos and b in pos and a != b:
-                        h, i, j = f.holds, pos[a], pos[b]
-                        codes[i][j] = 2 if h is None else int(bool(h))
-                        codes[j][i] = 2 if h is None else int(not h)
+                args = f.args
+                if len(args) == 2:
+                    i, j = pos.get(args[0]), pos.get(args[1])
+                    if i is not None and j is not None and i != j:
+                        codes[i][j], codes[j][i] = _PAIR_CODES[f.holds]
                         v = float(f.value)
                         vals[i][j], vals[j][i] = v, -v
             tab = self._pairs[base] = (codes, vals)
