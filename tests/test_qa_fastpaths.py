@@ -227,6 +227,22 @@ def test_point_in_mask_matches_decoded_mask(scenes):
     assert inside > 0
 
 
+def _degenerate_by_full_replay(t, env, ctx) -> list[int]:
+    """degenerate_steps without its shortcut: every droppable step is replayed."""
+    from refspatial_gen.qa import ops
+    from refspatial_gen.qa.executor import answer_key, replay
+
+    full, bad = answer_key(env[t.steps[-1].name]), []
+    for st in t.steps:
+        if st.op in ops.DROPPABLE:
+            try:
+                if replay(t, env, ctx, drop=st.index) == full:
+                    bad.append(st.index)
+            except Reject:
+                pass
+    return bad
+
+
 def test_replay_with_compiled_steps_matches_interpreter(scenes, monkeypatch):
     """The degeneracy check replays programs with the compiled steps; the interpreter gives the same verdicts."""
     import refspatial_gen.qa.compiled as compiled_mod
@@ -248,6 +264,7 @@ def test_replay_with_compiled_steps_matches_interpreter(scenes, monkeypatch):
                         mp.setattr(compiled_mod, "compiled", lambda t: [compiled_mod._generic(st) for st in t.steps])
                         slow = degenerate_steps(t, env, ctx)
                     assert fast == slow, (t.name, env)
+                    assert fast == _degenerate_by_full_replay(t, env, ctx), (t.name, env)  # the skipped replays
                     checked += 1
                     bad += bool(fast)
     assert checked > 200 and bad > 0  # degenerate instances were among those compared

@@ -643,9 +643,20 @@ def degenerate_steps(t: Template, env: dict[str, Any], ctx: Context) -> list[int
     """Indices of counted steps whose removal leaves the answer unchanged (empty = the question is sound)."""
     full = answer_key(env[t.steps[-1].name])
     bad = []
-    for st in t.steps:
+    steps = t.steps
+    for st in steps:
         if st.op not in ops.DROPPABLE:
             continue
+        k = st.index
+        if (st.op in _SET_OPS and k + 2 == len(steps) and steps[-1].op == "locate" and "of" not in steps[-1].args
+                and st.args.get("in") is None):
+            # dropping the set step that feeds the final locate hands locate this step's input set; unless that
+            # set is a single object the replay has no answer (not_unique), so it cannot be degenerate
+            before = env[steps[k - 1].name] if k > 0 else None
+            if not isinstance(before, frozenset):
+                before = ctx.idx.all  # what _set_in hands the step
+            if len(before) != 1:
+                continue
         try:
             alt = replay(t, env, ctx, drop=st.index)
         except Reject:

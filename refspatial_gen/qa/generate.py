@@ -240,9 +240,6 @@ def _instantiate(t: Template, ctx: Context, rng: SampleRng, config: QAConfig, ba
         ans = env[last]
         if want is not None and ans is not want:
             return None
-        key = (t.family, t.name, tuple(sorted((k, _hashable(env[k])) for k in slots if k in env)))
-        if key in seen:
-            return None
         if is_obj:
             ans = PointValue(idx.point(ans), ans)
         if isinstance(ans, PointValue):
@@ -250,6 +247,10 @@ def _instantiate(t: Template, ctx: Context, rng: SampleRng, config: QAConfig, ba
                 return None
             if ans.object_id is not None and not idx.point_in_mask(ans.object_id, ans.point):
                 return None
+        # the checks are independent filters: the cheap ones first, the replays (degeneracy) last
+        key = (t.family, t.name, tuple([(k, _hashable(env[k])) for k in slots if k in env]))
+        if key in seen:
+            return None
         if degenerate_steps(t, env, ctx):
             return None
         try:
@@ -265,10 +266,10 @@ def _instantiate(t: Template, ctx: Context, rng: SampleRng, config: QAConfig, ba
 
 
 def _slot_names(t: Template) -> tuple:
-    """The template's slot names (the dedup key reads them from each instance)."""
+    """The template's slot names, sorted (the dedup key reads them from each instance in this order)."""
     v = t.__dict__.get("_slot_names")
     if v is None:
-        v = t.__dict__["_slot_names"] = tuple(t.slots)
+        v = t.__dict__["_slot_names"] = tuple(sorted(t.slots))
     return v
 
 
