@@ -152,7 +152,8 @@ def test_compiled_steps_agree_with_run_step(scenes):
 
 
 def test_spot_facts_match_graph_index(scenes):
-    """corner/edge lookups (the `at` op) give what GraphIndex.fact gives, for every object and labelled spot."""
+    """corner/edge lookups (the `at` op: fact() and the Fact-free decision()) give what GraphIndex.fact gives,
+    for every object and labelled spot."""
     seen = {True: 0, None: 0, False: 0, "absent": 0}
     for f, g in scenes:
         idx, ref = SceneIndex(f, g), GraphIndex(g, f)
@@ -160,6 +161,9 @@ def test_spot_facts_match_graph_index(scenes):
             for a in idx.ids + (10_000,):
                 want = ref.fact(kind, a, sid, label)
                 got = idx.fact(kind, (a, sid, label))
+                from refspatial_gen.qa.index import NO_FACT
+
+                assert idx.decision(kind, (a, sid, label)) is (NO_FACT if want is None else want.holds)
                 if want is None:
                     assert got is None
                     seen["absent"] += 1

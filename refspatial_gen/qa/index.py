@@ -330,6 +330,18 @@ class SceneIndex:
                     c = cols[i][j]
                     if c != 3:
                         return _HOLDS[c]
+        elif (relation == "corner" or relation == "edge") and len(args) == 3:
+            a, sid, label = args
+            if type(a) is int and a in self.nodes and self.gindex.world and len({a, sid, label}) == 3:
+                # _spot_fact's rule, without a Fact: the stored instance, else False when a stands on that
+                # surface and the surface has that label, else not evaluated
+                f = self.gindex._facts.get((relation, args))
+                if f is not None:
+                    return f.holds
+                labels = self.gindex.surfaces.get(sid, {}).get("corners" if relation == "corner" else "edges", [])
+                if self.nodes[a].attributes.get("surface") != sid or label not in labels:
+                    return NO_FACT
+                return False
         f = self.fact(relation, args)
         return NO_FACT if f is None else f.holds
 
