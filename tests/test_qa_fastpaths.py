@@ -289,3 +289,48 @@ def test_decision_from_tables_matches_fact_path(scenes):
                 assert got is (NO_FACT if want is None else want.holds), (rel, a, b)
                 seen["missing" if want is None else want.holds] += 1
     assert all(seen.values())
+
+
+def test_compiled_steps_agree_on_search_instances(scenes):
+    """Every compiled step (relate, between, filter, locate, compare) returns what run_step returns or rejects
+    with, on the bindings the search really reaches, fed the previous step's value and other inputs."""
+    from refspatial_gen.qa.bench import default_config
+    from refspatial_gen.qa.compiled import compiled
+    from refspatial_gen.qa.executor import Context, Search, run_step
+
+    cfg = default_config()
+    checked: dict[str, int] = {}
+    for f, g in scenes[:3]:
+        idx = SceneIndex(f, g)
+        singles = [frozenset({x}) for x in idx.ids[:3]]
+        for fam in cfg.families:
+            for t in fam.templates:
+                if any(st.op == "camera_turn" for st in t.steps):
+                    continue
+                fns = compiled(t)
+                for env in list(Search(t, Context(idx, np.random.default_rng(3)), 400).instances())[:10]:
+                    for k, (st, fn) in enumerate(zip(t.steps, fns)):
+                        if fn.__qualname__.startswith("_generic"):
+                            continue
+                        own = env[t.steps[k - 1].name] if k else None
+                        for prev in (own, None, idx.all, *singles, frozenset()):
+                            for prune in (True, False):
+                                ctx = Context(idx, np.random.default_rng(0), prune=prune)
+                                try:
+                                    got = fn(env, prev, ctx)
+                                except Exception as e:  # a nonsense input (locate of nothing) fails alike
+                                    got = e
+                                try:
+                                    want = run_step(st, env, prev, ctx)
+                                except Reject as r:
+                                    want = r
+                                except Exception as e:
+                                    assert type(got) is type(e), (t.name, st.op, prev)
+                                    continue
+                                if isinstance(want, Reject):
+                                    assert isinstance(got, Reject) and got.reason == want.reason, (t.name, st.op)
+                                else:
+                                    assert got == want and type(got) is type(want), (t.name, st.op)
+                                checked[st.op] = checked.get(st.op, 0) + 1
+    assert {"relate", "between", "filter", "locate", "compare"} <= set(checked), checked
+    assert min(checked.values()) > 50, checked

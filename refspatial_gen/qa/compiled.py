@@ -3,16 +3,19 @@
 Why: the search executes tens of steps per emitted question, and most fail at once (a relation inside its
 margin, an empty or unchanged set). Interpreting a step (dispatch on the op name, resolving each argument,
 raising and catching an exception per failure) costs several times the lookup itself. A compiled step binds
-its argument names once and returns a rejection as a value. The hot ops (relate, between, filter, locate)
-get their own closure; every other op runs through `run_step` unchanged. `run_step` stays the reference:
-a test checks that compiled and interpreted steps agree on every binding of every template.
+its argument names once and returns a rejection as a value. The hot ops (relate, between, filter, locate,
+compare) get their own closure; every other op runs through `run_step` unchanged. `run_step` stays the
+reference: tests check that compiled and interpreted steps agree on every binding of every template and
+on the bindings the search reaches.
 """
 
 from __future__ import annotations
 
 from typing import Any, Callable
 
+from refspatial_gen.qa.executor import PointValue
 from refspatial_gen.qa.index import Reject
+from refspatial_gen.qa.ops import ANCHORED
 from refspatial_gen.qa.templates import Ref, Step, Template
 
 StepFn = Callable[[dict, Any, Any], Any]  # (env, prev, ctx) -> value, or a Reject instance (returned, not raised)
@@ -105,7 +108,105 @@ def _between(st: Step) -> StepFn | None:
     return fn
 
 
-COMPILERS: dict[str, Callable[[Step], StepFn | None]] = {"relate": _relate, "between": _between}
+NOT_UNIQUE, SAME_OBJECT, NO_ANCHOR, NO_POINT = (Reject("not_unique"), Reject("same_object"), Reject("no_anchor"),
+                                                Reject("no_point"))
+_EMPTY_SET: frozenset = frozenset()
+
+
+def _value_of(ref: Ref | None) -> tuple[str | None, Any] | None:
+    """(env name, None) for a slot/step reference, (None, value) for a literal, None for anything else."""
+    if ref is None:
+        return None
+    if ref.kind in ("slot", "step"):
+        return ref.value, None
+    if ref.kind == "literal":
+        return None, ref.value
+    return None
+
+
+def _filter(st: Step) -> StepFn | None:
+    a = st.args
+    if a.get("in") is not None:
+        return None
+    parts = {k: _value_of(a.get(k)) for k in ("category", "color", "on") if k in a}
+    if any(v is None for v in parts.values()):
+        return None
+    cat, col, on = parts.get("category"), parts.get("color"), parts.get("on")
+    min_out, exact = st.min_out, st.exact_one
+
+    def fn(env: dict, prev: Any, ctx: Any) -> Any:
+        idx = ctx.idx
+        s = prev if prev.__class__ is frozenset else idx.all
+        if cat is not None:
+            s = s & idx.by_category.get(cat[1] if cat[0] is None else env[cat[0]], _EMPTY_SET)
+        if col is not None:
+            s = s & idx.by_color.get(col[1] if col[0] is None else env[col[0]], _EMPTY_SET)
+        if on is not None:
+            sid, on_map = (on[1] if on[0] is None else env[on[0]]), idx.on
+            s = frozenset([i for i in s if sid in on_map.get(i, ())])
+        if not s:
+            return EMPTY
+        if ctx.prune and (len(s) < min_out or (exact and len(s) != 1)):
+            return BOUND
+        return s
+    return fn
+
+
+def _locate(st: Step) -> StepFn | None:
+    ref = st.args.get("of")
+    of = _name(ref)
+    if ref is not None and of is None:
+        return None
+
+    def fn(env: dict, prev: Any, ctx: Any) -> Any:
+        v = prev if of is None else env[of]
+        if v.__class__ is frozenset:
+            if len(v) != 1:
+                return NOT_UNIQUE if v else EMPTY
+            v = next(iter(v))
+        p = ctx.idx.nodes[v].point
+        if p is None:
+            return NO_POINT
+        return PointValue((float(p[0]), float(p[1])), v)
+    return fn
+
+
+def _compare(st: Step) -> StepFn | None:
+    a = st.args
+    rel, an, bn = _value_of(a["relation"]), _name(a["a"]), _name(a["b"])
+    cn = _name(a.get("anchor"))
+    if rel is None or an is None or bn is None or (a.get("anchor") is not None and cn is None):
+        return None
+    rel_name, rel_lit = rel
+
+    def fn(env: dict, prev: Any, ctx: Any) -> Any:
+        r = rel_lit if rel_name is None else env[rel_name]
+        x, y = env[an], env[bn]
+        if x.__class__ is frozenset:
+            if len(x) != 1:
+                return NOT_UNIQUE if x else EMPTY
+            x = next(iter(x))
+        if y.__class__ is frozenset:
+            if len(y) != 1:
+                return NOT_UNIQUE if y else EMPTY
+            y = next(iter(y))
+        anchor = env[cn] if cn is not None else None
+        if x == y or (anchor is not None and (anchor == x or anchor == y)):
+            return SAME_OBJECT
+        if r in ANCHORED:
+            if anchor is None:
+                return NO_ANCHOR
+            h = ctx.idx.decision(r, (x, y, anchor))
+        else:
+            h = ctx.idx.decision(r, (x, y))
+        if h is True or h is False:
+            return h
+        return MARGIN if h is None else NO_FACT
+    return fn
+
+
+COMPILERS: dict[str, Callable[[Step], StepFn | None]] = {
+    "relate": _relate, "between": _between, "filter": _filter, "locate": _locate, "compare": _compare}
 
 
 def compile_step(st: Step) -> StepFn:

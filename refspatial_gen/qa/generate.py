@@ -194,14 +194,17 @@ def _family_choices(fam: Any, config: QAConfig, exhausted: set[int], multiview: 
     if plan is None or plan[0] is not fam or plan[1] is not config:
         mix = config.step_mix
         temps = [t for t in fam.templates if t.weight > 0]
-        plan = (fam, config, temps, [t.weight * mix.get(t.n_steps, 1.0 if not mix else 0.0) for t in temps],
-                [_is_multiview(t) for t in temps])
+        multi = [_is_multiview(t) for t in temps]
+        weights = [t.weight * mix.get(t.n_steps, 1.0 if not mix else 0.0) for t in temps]
+        single = [k for k, m in enumerate(multi) if not m]
+        plan = (fam, config, temps, weights, multi, frozenset(id(t) for t in temps),
+                ([temps[k] for k in single], [weights[k] for k in single]) if any(multi) else (temps, weights))
         if len(_FAMILY_PLANS) > 256:
             _FAMILY_PLANS.clear()
         _FAMILY_PLANS[key] = plan
-    _, _, temps, weights, multi = plan
-    if multiview and not exhausted:
-        return temps, weights
+    _, _, temps, weights, multi, members, single_view = plan
+    if not exhausted or exhausted.isdisjoint(members):
+        return (temps, weights) if multiview else single_view
     keep = [k for k, t in enumerate(temps) if id(t) not in exhausted and (multiview or not multi[k])]
     return [temps[k] for k in keep], [weights[k] for k in keep]
 
