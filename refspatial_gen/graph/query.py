@@ -47,7 +47,7 @@ class GraphIndex:
         self._pos: dict[int, int] = {x: k for k, x in enumerate(self.ids)}  # id -> row of the derived tables
         self._barr = _UNSET
         self._bpairs: dict | None = None
-        self._bcells: tuple = ([], [], [])  # per anchor pair row: candidate mask, code, t (python lists)
+        self._bcells: tuple | None = None  # per anchor pair row: candidate mask, code, t (python lists)
         self._brow: dict[tuple[int, int], tuple[frozenset, frozenset]] = {}
 
     # ------------------------------------------------------------------ nodes
@@ -245,12 +245,24 @@ class GraphIndex:
                 B, C, cand, code, t = arr
                 keys = [(ids[b], ids[c]) for b, c in zip(B.tolist(), C.tolist())]
                 self._bpairs = {k: p for p, k in enumerate(keys)}
-                yes, maybe = cand & (code == TRUE), cand & (code == UNDECIDED)
-                id_arr = np.asarray(ids)
-                for p in np.flatnonzero(cand.any(axis=1)).tolist():
-                    self._brow[keys[p]] = (frozenset(id_arr[yes[p]].tolist()), frozenset(id_arr[maybe[p]].tolist()))
-                self._bcells = (cand.tolist(), code.tolist(), t.tolist())
+                rows: dict[int, tuple[list, list]] = {}
+                P, A = np.nonzero(cand)
+                for p, a, c in zip(P.tolist(), A.tolist(), code[P, A].tolist()):
+                    r = rows.get(p)
+                    if r is None:
+                        r = rows[p] = ([], [])
+                    r[0 if c == TRUE else 1].append(ids[a])
+                for p, (yes, maybe) in rows.items():
+                    self._brow[keys[p]] = (frozenset(yes), frozenset(maybe))
         return self._bpairs
+
+    def _between_cells(self) -> tuple[list, list, list]:
+        """The between arrays' candidate mask, code and t as lists (between_code reads single cells)."""
+        if self._bcells is None:
+            self._between_pairs()
+            arr = self._between_arrays()
+            self._bcells = ([], [], []) if arr is None else (arr[2].tolist(), arr[3].tolist(), arr[4].tolist())
+        return self._bcells
 
     def _between_arrays(self):
         """between_arrays over the stored node centres and distances (kept: the table and the rows share it)."""
@@ -273,7 +285,7 @@ class GraphIndex:
         if p is None:
             return False, 0.0
         i = self._pos[int(a)]
-        cand, code, t = self._bcells
+        cand, code, t = self._between_cells()
         if not cand[p][i]:
             return False, 0.0
         return holds_of(code[p][i]), t[p][i]
