@@ -232,7 +232,7 @@ def test_point_in_mask_matches_decoded_mask(scenes):
 
 
 def _degenerate_by_full_replay(t, env, ctx) -> list[int]:
-    """degenerate_steps without its shortcut: every droppable step is replayed."""
+    """degenerate_steps without its shortcuts: every droppable step is replayed, the whole program each time."""
     from refspatial_gen.qa import ops
     from refspatial_gen.qa.executor import answer_key, replay
 
@@ -240,7 +240,7 @@ def _degenerate_by_full_replay(t, env, ctx) -> list[int]:
     for st in t.steps:
         if st.op in ops.DROPPABLE:
             try:
-                if replay(t, env, ctx, drop=st.index) == full:
+                if replay(t, env, ctx, drop=st.index, reuse_prefix=False) == full:
                     bad.append(st.index)
             except Reject:
                 pass

@@ -583,19 +583,28 @@ class Search:
         return None
 
 
-def replay(t: Template, env: dict[str, Any], ctx: Context, drop: int | None = None) -> Any:
+def replay(t: Template, env: dict[str, Any], ctx: Context, drop: int | None = None,
+           reuse_prefix: bool = True) -> Any:
     """Re-run the program with the slots of `env`, optionally with step `drop` removed; returns the answer.
 
     Removing a set-narrowing step passes its input through; removing a superlative/ordinal leaves the
     input set (an answer only if it holds one object); removing a compare drops it from its `all`, or
     leaves no answer when it was the answer itself. Raises Reject when there is no answer.
+    With `reuse_prefix`, the steps before `drop` are not re-run: their results are the instance's own (a step
+    depends only on the slots and earlier steps, and pruning only adds rejections, never changes a value).
     """
     from refspatial_gen.qa.compiled import compiled
 
     local = {k: v for k, v in env.items() if k in t.slots}
     ctx = Context(ctx.idx, ctx.rng, ctx.second, prune=False)
     prev = None
-    for st, fn in zip(t.steps, compiled(t)):
+    steps, fns = t.steps, compiled(t)
+    if reuse_prefix and drop:
+        for st in steps[:drop]:
+            local[st.name] = env[st.name]
+        prev = env[steps[drop - 1].name]
+        steps, fns = steps[drop:], fns[drop:]
+    for st, fn in zip(steps, fns):
         if st.index == drop:
             if st.op in ("relate", "between", "at"):
                 val = _set_in(st, local, prev, ctx.idx)

@@ -112,7 +112,8 @@ class SceneIndex:
         self._pos = {x: k for k, x in enumerate(self.ids)}
         self._dist: list | None = None
         self._derived: dict[str, tuple | None] = {}
-        self._pairs: dict[str, tuple] = {}
+        self._pairs: dict[str, list] = {}  # pair relation base -> code rows (_pair_codes)
+        self._pair_vals: dict[str, list] = {}
         self._runs: dict[int, list[int]] = {}
         self._sizes: dict[int, tuple[float, float, float]] = {}
         self._key_points: dict[int, list[float]] = {}
@@ -150,26 +151,40 @@ class SceneIndex:
             self._derived[base] = out
         return self._derived[base]
 
-    def _pair_tables(self, base: str) -> tuple[list, list]:
-        """(code rows, value rows) of a stored antisymmetric relation in both directions over self.ids: R(b, a) =
-        not R(a, b), value negated (the storage rule of graph.query; a test pins the equality with GraphIndex).
-        Code 3 = not stored."""
-        tab = self._pairs.get(base)
-        if tab is None:
+    def _pair_codes(self, base: str) -> list:
+        """Code rows of a stored antisymmetric relation in both directions over self.ids: R(b, a) = not R(a, b)
+        (the storage rule of graph.query; a test pins the equality with GraphIndex). Code 3 = not stored."""
+        codes = self._pairs.get(base)
+        if codes is None:
             pos = self._pos
             n = len(self.ids)
             codes = [[3] * n for _ in range(n)]
-            vals = [[0.0] * n for _ in range(n)]
             for f in self.facts_of(base):
                 args = f.args
                 if len(args) == 2:
                     i, j = pos.get(args[0]), pos.get(args[1])
                     if i is not None and j is not None and i != j:
                         codes[i][j], codes[j][i] = _PAIR_CODES[f.holds]
+            self._pairs[base] = codes
+        return codes
+
+    def _pair_values(self, base: str) -> list:
+        """Value rows to _pair_codes: the stored value, negated for the reversed pair (fact() needs them; the
+        search's decisions do not, so they are built only when a Fact is asked for)."""
+        vals = self._pair_vals.get(base)
+        if vals is None:
+            pos = self._pos
+            n = len(self.ids)
+            vals = [[0.0] * n for _ in range(n)]
+            for f in self.facts_of(base):
+                args = f.args
+                if len(args) == 2:
+                    i, j = pos.get(args[0]), pos.get(args[1])
+                    if i is not None and j is not None and i != j:
                         v = float(f.value)
                         vals[i][j], vals[j][i] = v, -v
-            tab = self._pairs[base] = (codes, vals)
-        return tab
+            self._pair_vals[base] = vals
+        return vals
 
     def fact(self, relation: str, args: tuple) -> Fact | None:
         key = (relation, args)
@@ -179,11 +194,11 @@ class SceneIndex:
         pair = _PAIR_OF.get(relation)
         pos = self._pos
         if pair is not None and (pair[0] != "above_world" or self.gindex.world) and len(args) == 2:
-            cl, vl = self._pair_tables(pair[0])
+            cl = self._pair_codes(pair[0])
             a, b = args[::-1] if pair[1] else args
             i, j = pos.get(a), pos.get(b)
             if i is not None and j is not None and cl[i][j] != 3:
-                f = self._fact_cache[key] = Fact(_HOLDS[cl[i][j]], vl[i][j])
+                f = self._fact_cache[key] = Fact(_HOLDS[cl[i][j]], self._pair_values(pair[0])[i][j])
                 return f
         base = _DERIVED_OF.get(relation)
         if base is not None:
@@ -411,7 +426,7 @@ class SceneIndex:
         mat = None
         pair = _PAIR_OF.get(relation)
         if pair is not None and (pair[0] != "above_world" or self.gindex.world):
-            mat, swap = self._pair_tables(pair[0])[0], pair[1]
+            mat, swap = self._pair_codes(pair[0]), pair[1]
         elif relation in _SPARSE or relation == "outside":
             mat, swap = self._sparse_codes(relation), False
         else:
