@@ -144,9 +144,24 @@ def render(seq: Seq, values: Callable[[str], str], rng: np.random.Generator, p_o
            sentence: bool = True) -> str:
     """Render with synonyms and optional parts drawn from `rng`; whitespace tidied, and the first letter
     capitalised when `sentence` (not for phrases inserted into a sentence)."""
+    parts = seq.parts
+    if not sentence and len(parts) == 1 and parts[0].__class__ is Lit:
+        return _tidy_literal(parts[0].text)  # a fixed phrase ("to the left of"): no draws, tidied once
     out: list[str] = []
     _render(seq, values, rng, p_optional, out)
     return tidy("".join(out), sentence)
+
+
+_TIDY_LITERALS: dict[str, str] = {}
+
+
+def _tidy_literal(text: str) -> str:
+    t = _TIDY_LITERALS.get(text)
+    if t is None:
+        if len(_TIDY_LITERALS) > 10_000:
+            _TIDY_LITERALS.clear()
+        t = _TIDY_LITERALS[text] = tidy(text, False)
+    return t
 
 
 def _render(seq: Seq, values, rng, p_opt, out: list[str]) -> None:
