@@ -334,3 +334,26 @@ def test_compiled_steps_agree_on_search_instances(scenes):
                                 checked[st.op] = checked.get(st.op, 0) + 1
     assert {"relate", "between", "filter", "locate", "compare"} <= set(checked), checked
     assert min(checked.values()) > 50, checked
+
+
+def test_has_true_spot_matches_every_spot_decision(scenes):
+    """generate skips templates with an `at` step when no object is at any corner/edge; the shortcut must say
+    yes exactly when some (object, spot) decision is true."""
+    from refspatial_gen.core.model import RelationFact
+
+    f, g = scenes[0]
+    g2 = SceneGraph.from_json(g.to_json())
+    g2.facts = [x for x in g2.facts if x.relation not in ("corner", "edge")]
+    idx0 = SceneIndex(f, g2)
+    spot = idx0.spots[0] if idx0.spots else None
+    assert spot is not None, "the toy scene has labelled surface spots"
+    a = sorted(n.object_id for n in g2.nodes if n.attributes.get("surface") == spot[1])[0]
+    g3 = SceneGraph.from_json(g2.to_json())
+    g3.facts.append(RelationFact(spot[0], (a, spot[1], spot[2]), True, 0.01, 0.02))
+    outcomes = set()
+    for ff, gg in [*scenes, (f, g2), (f, g3)]:
+        idx = SceneIndex(ff, gg)
+        any_true = any(idx.decision(k, (x, sid, lab)) is True for k, sid, lab in idx.spots for x in idx.ids)
+        assert idx.has_true_spot == any_true
+        outcomes.add(any_true)
+    assert outcomes == {True, False}

@@ -231,6 +231,8 @@ def _is_multiview(t: Template) -> bool:
 
 def _instantiate(t: Template, ctx: Context, rng: SampleRng, config: QAConfig, bal: Balancer,
                  seen: set, frame_ids: list[str], qa_id: str, flip: bool = False) -> QAPair | None:
+    if _needs_spot(t) and not ctx.idx.has_true_spot:
+        return None  # an `at` step keeps objects at a corner/edge; with none anywhere every binding is empty
     want = bal.want_bool(rng) if t.answer_type == ops.BOOL else None
     if flip and want is not None:
         want = not want
@@ -266,6 +268,14 @@ def _instantiate(t: Template, ctx: Context, rng: SampleRng, config: QAConfig, ba
         return qa
     answers = bal.allowed_answers(idx) if any(answer_chain(t)) else None
     return Search(t, ctx, config.budget, answers).first(accept)
+
+
+def _needs_spot(t: Template) -> bool:
+    """Does the program filter by a corner/edge (an `at` step, which must keep at least one object)?"""
+    v = t.__dict__.get("_needs_spot")
+    if v is None:
+        v = t.__dict__["_needs_spot"] = any(st.op == "at" for st in t.steps)
+    return v
 
 
 def _slot_names(t: Template) -> tuple:

@@ -117,6 +117,7 @@ class SceneIndex:
         self._runs: dict[int, list[int]] = {}
         self._sizes: dict[int, tuple[float, float, float]] = {}
         self._key_points: dict[int, list[float]] = {}
+        self._has_true_spot: bool | None = None
         # executor: slot signature (executor.slot_signature) -> unshuffled candidates in this frame
         self.slot_memo: dict[tuple, tuple] = {}
         groups: dict = {}
@@ -506,6 +507,15 @@ class SceneIndex:
             runs = self._runs[object_id] = list(accumulate(o.mask.counts))  # run ends, column-major
         x, y = denormalise_point(point[0], point[1], self.W, self.H)
         return bisect_right(runs, x * o.mask.height + y) % 2 == 1
+
+    @property
+    def has_true_spot(self) -> bool:
+        """Is any object at a corner or edge (a stored corner/edge instance that holds)? decision() answers True
+        only from such an instance, so without one an `at` step keeps nothing."""
+        v = self._has_true_spot
+        if v is None:
+            v = self._has_true_spot = any(f.holds is True for rel in ("corner", "edge") for f in self.facts_of(rel))
+        return v
 
     def key_point(self, object_id: int) -> list[float]:
         """The object's answer point rounded as key steps store it (render.round_key), a fresh list each call."""
