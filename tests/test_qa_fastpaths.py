@@ -357,3 +357,30 @@ def test_has_true_spot_matches_every_spot_decision(scenes):
         assert idx.has_true_spot == any_true
         outcomes.add(any_true)
     assert outcomes == {True, False}
+
+
+def test_between_shortcut_only_skips_searches_that_cannot_succeed(scenes):
+    """generate skips a template whose `between` step must keep more objects than any anchor pair has between
+    it: largest_between_row is the largest true row, and with it below the bound the search finds nothing."""
+    from refspatial_gen.qa.bench import default_config
+    from refspatial_gen.qa.executor import Context, Search
+    from refspatial_gen.qa.generate import _between_need
+
+    cfg = default_config()
+    templates = [t for fam in cfg.families for t in fam.templates if _between_need(t)]
+    skipped = searched = 0
+    small = []  # five-object scenes: some have at most one object between any two
+    for seed in (104, 105, 106):
+        f = toy_frame(np.random.default_rng(seed), 5, frame_id=f"toy:{seed:06d}")
+        small.append((f, build_graph(f)))
+    for f, g in [*scenes, *small]:
+        idx = SceneIndex(f, g)
+        rows = [idx.between_entry(b, c)[0] for b, c in permutations(idx.ids, 2)]
+        assert idx.largest_between_row == max(len(r) for r in rows)
+        for t in templates:
+            if idx.largest_between_row < _between_need(t):
+                assert not list(Search(t, Context(idx, np.random.default_rng(0)), 10 ** 6).instances()), t.name
+                skipped += 1
+            else:
+                searched += 1
+    assert skipped and searched

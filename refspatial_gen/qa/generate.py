@@ -233,6 +233,9 @@ def _instantiate(t: Template, ctx: Context, rng: SampleRng, config: QAConfig, ba
                  seen: set, frame_ids: list[str], qa_id: str, flip: bool = False) -> QAPair | None:
     if _needs_spot(t) and not ctx.idx.has_true_spot:
         return None  # an `at` step keeps objects at a corner/edge; with none anywhere every binding is empty
+    need = _between_need(t)
+    if need and ctx.idx.largest_between_row < need:
+        return None  # a `between` step must keep `need` objects; no anchor pair has that many between it
     want = bal.want_bool(rng) if t.answer_type == ops.BOOL else None
     if flip and want is not None:
         want = not want
@@ -275,6 +278,14 @@ def _needs_spot(t: Template) -> bool:
     v = t.__dict__.get("_needs_spot")
     if v is None:
         v = t.__dict__["_needs_spot"] = any(st.op == "at" for st in t.steps)
+    return v
+
+
+def _between_need(t: Template) -> int:
+    """The most objects any `between` step of the program must keep (its search bound; 0 = no such step)."""
+    v = t.__dict__.get("_between_need")
+    if v is None:
+        v = t.__dict__["_between_need"] = max([max(st.min_out, 1) for st in t.steps if st.op == "between"] or [0])
     return v
 
 

@@ -118,6 +118,7 @@ class SceneIndex:
         self._sizes: dict[int, tuple[float, float, float]] = {}
         self._key_points: dict[int, list[float]] = {}
         self._has_true_spot: bool | None = None
+        self._largest_between_row: int | None = None
         # executor: slot signature (executor.slot_signature) -> unshuffled candidates in this frame
         self.slot_memo: dict[tuple, tuple] = {}
         groups: dict = {}
@@ -515,6 +516,16 @@ class SceneIndex:
         v = self._has_true_spot
         if v is None:
             v = self._has_true_spot = any(f.holds is True for rel in ("corner", "edge") for f in self.facts_of(rel))
+        return v
+
+    @property
+    def largest_between_row(self) -> int:
+        """The most objects between any anchor pair (decided true). A `between` step's output is a subset of
+        its anchor pair's row, so a step bound to keep more than this rejects every binding."""
+        v = self._largest_between_row
+        if v is None:
+            rows = self.gindex.between_rows() if self.gindex.world else {}
+            v = self._largest_between_row = max((len(t) for t, _u in rows.values()), default=0)
         return v
 
     def key_point(self, object_id: int) -> list[float]:
