@@ -146,13 +146,17 @@ def _generate(frames: list[Frame], idxs: list[SceneIndex], sample_rng: np.random
     mv_count = 0
     exhausted: set[int] = set()
     fams = [f for f in config.families if f.weight > 0 and f.templates]
+    capped = any(f.max_per_sample is not None for f in fams)
+    usable, weights = fams, [f.weight for f in fams]
     for _attempt in range(config.attempts + config.max_per_sample):
         if len(out) >= config.max_per_sample or not fams:
             break
-        usable = [f for f in fams if f.max_per_sample is None or per_family.get(f.name, 0) < f.max_per_sample]
+        if capped:
+            usable = [f for f in fams if f.max_per_sample is None or per_family.get(f.name, 0) < f.max_per_sample]
+            weights = [f.weight for f in usable]
         if not usable:
             break
-        fam = usable[_pick([f.weight for f in usable], rng)]
+        fam = usable[_pick(weights, rng)]
         temps, tw = _family_choices(fam, config, exhausted, bool(pairs) and mv_count < config.multiview_pairs)
         if not temps or sum(tw) <= 0:
             continue
@@ -236,6 +240,8 @@ def _instantiate(t: Template, ctx: Context, rng: SampleRng, config: QAConfig, ba
     need = _between_need(t)
     if need and ctx.idx.largest_between_row < need:
         return None  # a `between` step must keep `need` objects; no anchor pair has that many between it
+    if _needs_between_region(t) and not ctx.idx.has_between_region:
+        return None  # free space between two anchors, and the graph has no such region
     want = bal.want_bool(rng) if t.answer_type == ops.BOOL else None
     if flip and want is not None:
         want = not want
@@ -286,6 +292,14 @@ def _between_need(t: Template) -> int:
     v = t.__dict__.get("_between_need")
     if v is None:
         v = t.__dict__["_between_need"] = max([max(st.min_out, 1) for st in t.steps if st.op == "between"] or [0])
+    return v
+
+
+def _needs_between_region(t: Template) -> bool:
+    """Does the program ask for the free space between two anchors (a region the graph may not have)?"""
+    v = t.__dict__.get("_needs_between_region")
+    if v is None:
+        v = t.__dict__["_needs_between_region"] = any(st.op == "free_space" and "anchors" in st.args for st in t.steps)
     return v
 
 

@@ -100,6 +100,7 @@ class SceneIndex:
         self.region_list: tuple[FreeSpaceRegion, ...] = tuple(graph.free_space)
         for r in graph.free_space:
             self.regions.setdefault((r.kind, tuple(r.anchors)), r)
+        self.has_between_region = any(kind == "between" for kind, _anchors in self.regions)
         labels = graph.meta.get("surfaces") or {}
         self.spots: tuple[tuple[str, str, str], ...] = tuple(sorted(
             (kind, sid, lab) for sid, e in labels.items() if sid in self.surfaces
@@ -133,24 +134,30 @@ class SceneIndex:
     def _derived_tables(self, base: str) -> tuple[list, list, list] | None:
         """(code rows, None, value rows) of a size comparison over self.ids, with the graph's own decision
         function on the stored node attributes (what GraphIndex derives one pair at a time; a test pins the
-        equality). None without gravity or thresholds."""
+        equality). None without gravity or thresholds. The three comparisons (tall, big, wide) are computed
+        together on first use: one set of array operations instead of three."""
         if base not in self._derived:
             from refspatial_gen.graph.relations.common import TRUE, UNDECIDED
             from refspatial_gen.graph.relations.sizes import DERIVED, compare
 
             th, ids = self.gindex.th, self.ids
-            out = None
-            if th is not None and self.gindex.world and ids:
-                attr, abs_name, rel_name = DERIVED[base]
-                q = np.array([self.nodes[i].attributes[attr] for i in ids], float)
-                v, codes, m = compare(q, getattr(th, abs_name) if abs_name else 0.0, getattr(th, rel_name))
-                # graph codes TRUE 1 / FALSE 0 / UNDECIDED -1 -> ours 1 / 0 / 2 (floor modulo 3)
-                assert (TRUE, UNDECIDED) == (1, -1)
-                ours = np.mod(np.asarray(codes, dtype=np.int8), 3)
-                np.fill_diagonal(ours, 3)
-                vs = np.asarray(v, dtype=float).tolist()  # python floats: same values, no per-element numpy
-                out = (ours.tolist(), None, vs)
-            self._derived[base] = out
+            if th is None or not self.gindex.world or not ids:
+                for b in DERIVED:
+                    self._derived[b] = None
+                return None
+            bases = list(DERIVED)
+            q = np.array([[self.nodes[i].attributes[DERIVED[b][0]] for i in ids] for b in bases], float)
+            absm = np.array([getattr(th, DERIVED[b][1]) if DERIVED[b][1] else 0.0 for b in bases])[:, None, None]
+            relm = np.array([getattr(th, DERIVED[b][2]) for b in bases])[:, None, None]
+            v, codes, _m = compare(q, absm, relm)  # the graph's rule, the three quantities stacked
+            # graph codes TRUE 1 / FALSE 0 / UNDECIDED -1 -> ours 1 / 0 / 2 (floor modulo 3)
+            assert (TRUE, UNDECIDED) == (1, -1)
+            ours = np.mod(np.asarray(codes, dtype=np.int8), 3)
+            n = len(ids)
+            ours[:, np.arange(n), np.arange(n)] = 3
+            rows, vals = ours.tolist(), v.tolist()  # python values: no per-element numpy
+            for k, b in enumerate(bases):
+                self._derived[b] = (rows[k], None, vals[k])
         return self._derived[base]
 
     def _pair_codes(self, base: str) -> list:

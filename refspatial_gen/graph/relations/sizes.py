@@ -11,12 +11,14 @@ from refspatial_gen.graph.relations.base import Relation, register
 from refspatial_gen.graph.relations.common import cached, decide_matrix, pair_evaluator
 
 
-def compare(q: np.ndarray, abs_margin: float, rel_margin: float):
+def compare(q: np.ndarray, abs_margin, rel_margin):
     """(value, codes, margin) matrices for "i larger than j" over quantities q (also used by the query
-    index on stored node attributes, so both decide identically)."""
+    index on stored node attributes, so both decide identically). q may stack several quantities on leading
+    axes (shape (..., n)), with margins broadcastable to (..., 1, 1): the QA index compares all three sizes
+    at once."""
     q = np.asarray(q, float)
-    v = q[:, None] - q[None, :]  # v[i, j] > 0: i larger than j
-    m = np.maximum(abs_margin, rel_margin * np.maximum(q[:, None], q[None, :]))
+    v = q[..., :, None] - q[..., None, :]  # v[i, j] > 0: i larger than j
+    m = np.maximum(abs_margin, rel_margin * np.maximum(q[..., :, None], q[..., None, :]))
     return v, decide_matrix(v, m), m
 
 
