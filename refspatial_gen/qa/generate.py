@@ -436,8 +436,8 @@ def _ref_json(ref: Ref | None, env: dict, t: Template, idx: SceneIndex) -> Any:
 
 
 def _out_json(v: Any) -> Any:
-    if isinstance(v, frozenset):
-        return sorted(int(x) for x in v)
+    if v.__class__ is frozenset:
+        return sorted(map(int, v))
     if isinstance(v, PointValue):
         d: dict[str, Any] = {"point": [round(v.point[0], 3), round(v.point[1], 3)]}
         if v.object_id is not None:
@@ -457,6 +457,24 @@ def _out_json(v: Any) -> Any:
     if isinstance(v, (int, np.integer)):
         return int(v)
     return v
+
+
+def _arg_plan(t: Template, st: Any) -> tuple:
+    """How _build writes each argument of a step into the program record: (key, mode, payload) with mode
+    0 = a constant, 1 = a step reference, 2 = an object slot, 3 = anything else (through _ref_json)."""
+    out = []
+    for k, r in st.args.items():
+        if r.kind == "all":
+            out.append((k, 0, "all"))
+        elif r.kind == "literal" and isinstance(r.value, (str, int, float, bool)):
+            out.append((k, 0, r.value))
+        elif r.kind == "step":
+            out.append((k, 1, r.value))
+        elif r.kind == "slot" and t.slots[r.value].type in ("object", "anchor"):
+            out.append((k, 2, r.value))
+        else:
+            out.append((k, 3, r))
+    return tuple(out)
 
 
 class _BuildPlan(NamedTuple):
@@ -496,7 +514,7 @@ def _build_plan(t: Template) -> _BuildPlan:
         if st.args.get("in") is None and ops.OPS[st.op].args.get("in") is not None:
             default_in = prev_name or ""
         default_of = (prev_name,) if st.op in ("locate", "measure") and "of" not in st.args else None
-        program.append((st, tuple(st.args.items()), default_in, default_of))
+        program.append((st, _arg_plan(t, st), default_in, default_of))
         prev_name = st.name
     plan = t.__dict__["_build_plan"] = _BuildPlan(
         frozenset(rel), tuple(n for n, s in t.slots.items() if s.type == "relation"), tuple(regions), tuple(spots),
@@ -608,8 +626,19 @@ def _build(t: Template, env: dict, ans: Any, ctx: Context, rng: SampleRng, frame
     _check_key_phrases(key_steps, struct, targets, idx)
     trace = fmt_trace(key_steps, answer) if t.n_steps >= 2 else ""
     program = []
-    for st, items, default_in, default_of in plan.program:
-        args = {k: _ref_json(r, env, t, idx) for k, r in items}
+    phrase = idx.phrase
+    for st, arg_plan, default_in, default_of in plan.program:
+        args: dict[str, Any] = {}
+        for k, mode, p in arg_plan:
+            if mode == 0:
+                args[k] = p
+            elif mode == 1:
+                args[k] = {"step": p}
+            elif mode == 2:
+                v = env[p]
+                args[k] = {"slot": p, "object": int(v), "phrase": phrase[v]}
+            else:
+                args[k] = _ref_json(p, env, t, idx)
         if default_in is not None:
             args["in"] = {"step": default_in} if default_in else "all"
         if default_of is not None:
@@ -682,7 +711,9 @@ def _key_steps(t: Template, env: dict, ans: Any, ctx: Context) -> list[KeyStep]:
     """One perceptual step per object the reasoning looks at, in program order, then the answer."""
     idx = ctx.idx
     out: list[KeyStep] = []
-    done: set = set()
+    placed: set[str] = set()  # phrases with a Position step (and Size, Orientation below): one of each
+    sized_done: set[str] = set()
+    oriented: set[str] = set()
     phrase_of = idx.phrase
 
     def name(o: int) -> str:
@@ -690,20 +721,20 @@ def _key_steps(t: Template, env: dict, ans: Any, ctx: Context) -> list[KeyStep]:
 
     def pos(o: int, phrase: str | None = None) -> None:
         ph = phrase or phrase_of.get(o) or f"the target {idx.category[o]}"
-        if ("P", ph) not in done:
-            done.add(("P", ph))
+        if ph not in placed:
+            placed.add(ph)
             out.append(KeyStep("Position", ph, idx.key_point(o)))
 
     def size(o: int) -> None:
         ph = name(o)
-        if ("S", ph) not in done:
-            done.add(("S", ph))
+        if ph not in sized_done:
+            sized_done.add(ph)
             out.append(KeyStep("Size", ph, round_key(idx.size(o))))
 
     def orient(o: int) -> None:
         ph = name(o)
-        if ("O", ph) not in done:
-            done.add(("O", ph))
+        if ph not in oriented:
+            oriented.add(ph)
             out.append(KeyStep("Orientation", ph, round_key(idx.front_cam(o))))
 
     size_rels, orient_rels = ops.SIZE_RELATIONS, ops.ORIENTATION_RELATIONS

@@ -118,6 +118,7 @@ class SceneIndex:
         self._runs: dict[int, list[int]] = {}
         self._sizes: dict[int, tuple[float, float, float]] = {}
         self._key_points: dict[int, list[float]] = {}
+        self._cam_rows: list | None = None
         self._has_true_spot: bool | None = None
         self._largest_between_row: int | None = None
         # executor: slot signature (executor.slot_signature) -> unshuffled candidates in this frame
@@ -562,6 +563,11 @@ class SceneIndex:
         fw = o.front_world
         if fw is None:
             raise Reject("no_front")
-        v = self.frame.camera.world_from_cam[:3, :3].T @ fw
-        v = v / np.linalg.norm(v)
-        return float(v[0]), float(v[1]), float(v[2])
+        R = self._cam_rows
+        if R is None:
+            R = self._cam_rows = self.frame.camera.world_from_cam[:3, :3].tolist()
+        f0, f1, f2 = (float(x) for x in fw)
+        # R.T @ fw, then unit length (three-vector arithmetic in Python: no array round trip)
+        v = [R[0][i] * f0 + R[1][i] * f1 + R[2][i] * f2 for i in range(3)]
+        n = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+        return v[0] / n, v[1] / n, v[2] / n

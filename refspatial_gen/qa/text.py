@@ -177,11 +177,8 @@ def _render(seq: Seq, values, rng, p_opt, out: list[str]) -> None:
             _render(p.body, values, rng, p_opt, out)
 
 
-_SPACES = re.compile(r"\s+")
 _SPACE_PUNCT = re.compile(r"\s+([,.?!;:])")
-# anything the two substitutions would change: a whitespace run longer than one character, whitespace other
-# than a plain space, or whitespace before punctuation (most rendered texts have none: skip the rewrites)
-_UNTIDY = re.compile(r"\s\s|[^\S ]|\s[,.?!;:]")
+_SPACE_BEFORE_PUNCT = (" ,", " .", " ?", " !", " ;", " :")
 
 
 def _group1(m: re.Match) -> str:
@@ -189,7 +186,11 @@ def _group1(m: re.Match) -> str:
 
 
 def tidy(s: str, sentence: bool = True) -> str:
-    if _UNTIDY.search(s) is not None:
-        s = _SPACE_PUNCT.sub(_group1, _SPACES.sub(" ", s))
-    s = s.strip()
+    """Whitespace runs collapsed to one space, none before punctuation, none at the ends; the first letter
+    capitalised when `sentence`. str.split() splits on exactly the characters regex whitespace matches (both
+    use Unicode whitespace), so the join is a whitespace-run -> " " substitution plus strip, at string speed; the
+    punctuation rule then only runs when a space precedes one."""
+    s = " ".join(s.split())
+    if " " in s and any(p in s for p in _SPACE_BEFORE_PUNCT):
+        s = _SPACE_PUNCT.sub(_group1, s)
     return s[:1].upper() + s[1:] if s and sentence else s
