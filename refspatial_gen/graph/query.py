@@ -30,6 +30,31 @@ SYMMETRIC_STORED = {"distance", "touching", "far_from", "next_to"}
 _UNSET = object()  # not computed yet (between_arrays itself may return None)
 _EMPTY_ROW: tuple[frozenset, frozenset] = (frozenset(), frozenset())
 
+class _FactLookup:
+    """(relation, args) -> the stored fact, like a dict over all facts (a later duplicate wins), but each
+    relation's table is built on its first lookup: an index that only asks a few relations pays for those."""
+
+    __slots__ = ("_index", "_by")
+
+    def __init__(self, index: "GraphIndex") -> None:
+        self._index, self._by = index, {}
+
+    def _table(self, relation: str) -> dict:
+        t = self._by.get(relation)
+        if t is None:
+            t = self._by[relation] = {tuple(f.args): f for f in self._index.facts_of(relation)}
+        return t
+
+    def get(self, key: tuple, default=None):
+        return self._table(key[0]).get(tuple(key[1]), default)
+
+    def __contains__(self, key: tuple) -> bool:
+        return tuple(key[1]) in self._table(key[0])
+
+    def __getitem__(self, key: tuple) -> RelationFact:
+        return self._table(key[0])[tuple(key[1])]
+
+
 class GraphIndex:
     """Index over one SceneGraph. `frame` is optional (only needed by callers that want pixels)."""
 
@@ -38,7 +63,7 @@ class GraphIndex:
         self.frame = frame
         self.nodes: dict[int, Node] = {n.object_id: n for n in graph.nodes}
         self.ids = sorted(self.nodes)
-        self._facts: dict[tuple, RelationFact] = {(f.relation, tuple(f.args)): f for f in graph.facts}
+        self._facts = _FactLookup(self)  # (relation, args) -> stored fact
         self.th = Thresholds(**graph.meta["thresholds"]) if "thresholds" in graph.meta else None
         self.world = bool(graph.meta.get("world_relations", False))
         self.surfaces: dict[str, dict] = graph.meta.get("surfaces", {})

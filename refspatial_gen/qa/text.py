@@ -164,17 +164,54 @@ def _tidy_literal(text: str) -> str:
     return t
 
 
-def _render(seq: Seq, values, rng, p_opt, out: list[str]) -> None:
+# compiled parts: (0, text) literal, (1, name) slot, (2, options) synonyms, (3, body) optional part, with
+# synonyms and optional parts that are plain words flattened to (4, texts) and (5, text): no recursion
+_FLAT: dict[int, tuple[Seq, tuple]] = {}
+
+
+def _flat(seq: Seq) -> tuple:
+    hit = _FLAT.get(id(seq))
+    if hit is not None and hit[0] is seq:
+        return hit[1]
+    ops: list[tuple] = []
     for p in seq.parts:
-        cls = p.__class__  # exact classes (frozen dataclasses, never subclassed): cheaper than isinstance
-        if cls is Lit:
-            out.append(p.text)
-        elif cls is Slot:
-            out.append(values(p.name))
-        elif cls is Alt:
-            _render(p.options[int(rng.integers(len(p.options)))], values, rng, p_opt, out)
+        if p.__class__ is Lit:
+            ops.append((0, p.text))
+        elif p.__class__ is Slot:
+            ops.append((1, p.name))
+        elif p.__class__ is Alt:
+            if all(len(o.parts) == 1 and o.parts[0].__class__ is Lit for o in p.options):
+                ops.append((4, tuple(o.parts[0].text for o in p.options)))
+            else:
+                ops.append((2, p.options))
+        elif len(p.body.parts) == 1 and p.body.parts[0].__class__ is Lit:
+            ops.append((5, p.body.parts[0].text))
+        else:
+            ops.append((3, p.body))
+    if len(_FLAT) > 100_000:
+        _FLAT.clear()
+    out = tuple(ops)
+    _FLAT[id(seq)] = (seq, out)
+    return out
+
+
+def _render(seq: Seq, values, rng, p_opt, out: list[str]) -> None:
+    """Append the rendered parts; draws from rng in part order (one integer per synonym group, one float per
+    optional part), the same draws whatever the parts contain."""
+    for kind, v in _flat(seq):
+        if kind == 0:
+            out.append(v)
+        elif kind == 1:
+            out.append(values(v))
+        elif kind == 4:
+            out.append(v[int(rng.integers(len(v)))])
+        elif kind == 5:
+            if rng.random() < p_opt:
+                out.append(v)
+        elif kind == 2:
+            _render(v[int(rng.integers(len(v)))], values, rng, p_opt, out)
         elif rng.random() < p_opt:
-            _render(p.body, values, rng, p_opt, out)
+            _render(v, values, rng, p_opt, out)
 
 
 _SPACE_PUNCT = re.compile(r"\s+([,.?!;:])")
