@@ -32,17 +32,27 @@ _EMPTY_ROW: tuple[frozenset, frozenset] = (frozenset(), frozenset())
 
 class _FactLookup:
     """(relation, args) -> the stored fact, like a dict over all facts (a later duplicate wins), but each
-    relation's table is built on its first lookup: an index that only asks a few relations pays for those."""
+    relation's table is built on its first lookup: an index that only asks a few relations pays for those.
+    Holds the graph, not the index (no reference cycle)."""
 
-    __slots__ = ("_index", "_by")
+    __slots__ = ("_graph", "_groups", "_by")
 
-    def __init__(self, index: "GraphIndex") -> None:
-        self._index, self._by = index, {}
+    def __init__(self, graph: SceneGraph) -> None:
+        self._graph, self._groups, self._by = graph, None, {}
+
+    def facts_of(self, relation: str) -> list[RelationFact]:
+        """The stored facts of one relation, in storage order (all relations grouped in one pass, on first use)."""
+        groups = self._groups
+        if groups is None:
+            groups = self._groups = {}
+            for f in self._graph.facts:
+                groups.setdefault(f.relation, []).append(f)
+        return groups.get(relation, [])
 
     def _table(self, relation: str) -> dict:
         t = self._by.get(relation)
         if t is None:
-            t = self._by[relation] = {tuple(f.args): f for f in self._index.facts_of(relation)}
+            t = self._by[relation] = {tuple(f.args): f for f in self.facts_of(relation)}
         return t
 
     def get(self, key: tuple, default=None):
@@ -63,12 +73,11 @@ class GraphIndex:
         self.frame = frame
         self.nodes: dict[int, Node] = {n.object_id: n for n in graph.nodes}
         self.ids = sorted(self.nodes)
-        self._facts = _FactLookup(self)  # (relation, args) -> stored fact
+        self._facts = _FactLookup(graph)  # (relation, args) -> stored fact
         self.th = Thresholds(**graph.meta["thresholds"]) if "thresholds" in graph.meta else None
         self.world = bool(graph.meta.get("world_relations", False))
         self.surfaces: dict[str, dict] = graph.meta.get("surfaces", {})
         self._dist: np.ndarray | None = None
-        self._by_rel: dict[str, list] | None = None
         self._pos: dict[int, int] = {x: k for k, x in enumerate(self.ids)}  # id -> row of the derived tables
         self._barr = _UNSET
         self._bpairs: dict | None = None
@@ -210,13 +219,8 @@ class GraphIndex:
         return self._facts.get(key)
 
     def facts_of(self, relation: str) -> list[RelationFact]:
-        """The stored facts of one relation, in storage order (all relations grouped in one pass, on first use)."""
-        if self._by_rel is None:
-            by: dict[str, list] = {}
-            for f in self.graph.facts:
-                by.setdefault(f.relation, []).append(f)
-            self._by_rel = by
-        return self._by_rel.get(relation, [])
+        """The stored facts of one relation, in storage order (grouped once, on first use)."""
+        return self._facts.facts_of(relation)
 
     def _margin(self, relation: str) -> float:
         return {"touching": self.th.touch_band, "far_from": self.th.far_from_band,
