@@ -94,6 +94,9 @@ def test_sample_rng_is_reproducible_and_covers_its_range():
         assert sorted(p) == list(range(n))
     firsts = {a.permutation(4)[0] for _ in range(200)}
     assert firsts == {0, 1, 2, 3}
+    x, y = SampleRng(np.random.default_rng(9)), SampleRng(np.random.default_rng(9))
+    items = ("a", "b", "c", "d", "e", "f")
+    assert x.shuffled(items) == [items[k] for k in y.permutation(len(items))]  # same draws, same order
     c = a.choice(10, size=4, replace=False)
     assert len(set(c)) == 4 and all(0 <= x < 10 for x in c)
     with pytest.raises(ValueError):

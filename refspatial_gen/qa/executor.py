@@ -489,10 +489,12 @@ class Search:
             base = memo.get(mk)
             if base is None:
                 base = memo[mk] = tuple(slot_candidates(self.t, name, {}, self.ctx))
-            if len(base) > 1:
-                base = [base[k] for k in self.ctx.rng.permutation(len(base))]
-            else:
+            if len(base) < 2:
                 base = list(base)
+            elif isinstance(self.ctx.rng, SampleRng):
+                base = self.ctx.rng.shuffled(base)
+            else:  # a numpy Generator (tests and callers outside generation)
+                base = [base[k] for k in self.ctx.rng.permutation(len(base))]
             c = self._cands[name] = base
         return c
 

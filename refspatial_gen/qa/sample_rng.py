@@ -37,6 +37,16 @@ class SampleRng:
             p[i], p[j] = p[j], p[i]
         return p
 
+    def shuffled(self, items) -> list:
+        """A new list of `items` in random order: the same draws and the same order as
+        [items[k] for k in permutation(len(items))], without the index list."""
+        p = list(items)
+        r = self.random
+        for i in range(len(p) - 1, 0, -1):
+            j = int(r() * (i + 1))
+            p[i], p[j] = p[j], p[i]
+        return p
+
     def choice(self, n: int, size: int, replace: bool = False) -> list[int]:
         """`size` distinct indices of range(n) in random order (a partial Fisher-Yates)."""
         if replace:
