@@ -30,6 +30,22 @@ SYMMETRIC_STORED = {"distance", "touching", "far_from", "next_to"}
 _UNSET = object()  # not computed yet (between_arrays itself may return None)
 _EMPTY_ROW: tuple[frozenset, frozenset] = (frozenset(), frozenset())
 
+_THRESHOLDS: dict[tuple, Thresholds] = {}
+
+
+def _thresholds(values: dict) -> Thresholds:
+    """Thresholds from a graph's stored values; equal values share one (frozen) instance, since every graph
+    of a run stores the same few sets and building one is most of an index's set-up."""
+    key = tuple(values.items())
+    th = _THRESHOLDS.get(key)
+    if th is None:
+        th = Thresholds(**values)
+        if len(_THRESHOLDS) > 64:
+            _THRESHOLDS.clear()
+        _THRESHOLDS[key] = th
+    return th
+
+
 class _FactLookup:
     """(relation, args) -> the stored fact, like a dict over all facts (a later duplicate wins), but each
     relation's table is built on its first lookup: an index that only asks a few relations pays for those.
@@ -74,7 +90,7 @@ class GraphIndex:
         self.nodes: dict[int, Node] = {n.object_id: n for n in graph.nodes}
         self.ids = sorted(self.nodes)
         self._facts = _FactLookup(graph)  # (relation, args) -> stored fact
-        self.th = Thresholds(**graph.meta["thresholds"]) if "thresholds" in graph.meta else None
+        self.th = _thresholds(graph.meta["thresholds"]) if "thresholds" in graph.meta else None
         self.world = bool(graph.meta.get("world_relations", False))
         self.surfaces: dict[str, dict] = graph.meta.get("surfaces", {})
         self._dist: np.ndarray | None = None

@@ -85,7 +85,8 @@ class SceneIndex:
             a = n.attributes
             color[i] = a.get("color") or a.get("colour")
             # "on the table": the root surface an object stands on (directly or stacked), or its direct support
-            on[i] = frozenset(x for x in (a.get("surface"), n.support) if x)
+            root, sup = a.get("surface"), n.support
+            on[i] = frozenset((root, sup) if root and sup else (root,) if root else (sup,) if sup else ())
         self.nodes, self.phrase, self.category, self.color, self.on = nodes, phrase, category, color, on
         self.ids: tuple[int, ...] = tuple(sorted(nodes))
         self.objects = {o.id: o for o in frame.objects}
@@ -96,11 +97,10 @@ class SceneIndex:
         self.colors = tuple(sorted({c for c in color.values() if c}))
         self.surfaces = {s.id: s for s in frame.surfaces}
         self.has_front = {i: (i in self.objects and self.objects[i].front is not None) for i in self.ids}
-        self.regions: dict[tuple, FreeSpaceRegion] = {}
         self.region_list: tuple[FreeSpaceRegion, ...] = tuple(graph.free_space)
-        for r in graph.free_space:
-            self.regions.setdefault((r.kind, tuple(r.anchors)), r)
-        self.has_between_region = any(kind == "between" for kind, _anchors in self.regions)
+        # (kind, anchors) -> the first region listed with them (reversed: later duplicates are overwritten)
+        self.regions: dict[tuple, FreeSpaceRegion] = {(r.kind, tuple(r.anchors)): r for r in reversed(self.region_list)}
+        self.has_between_region = any(r.kind == "between" for r in self.region_list)
         labels = graph.meta.get("surfaces") or {}
         self.spots: tuple[tuple[str, str, str], ...] = tuple(sorted(
             (kind, sid, lab) for sid, e in labels.items() if sid in self.surfaces
