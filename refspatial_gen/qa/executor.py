@@ -597,15 +597,18 @@ def replay(t: Template, env: dict[str, Any], ctx: Context, drop: int | None = No
     """
     from refspatial_gen.qa.compiled import compiled
 
-    local = {k: v for k, v in env.items() if k in t.slots}
-    ctx = Context(ctx.idx, ctx.rng, ctx.second, prune=False)
+    if ctx.prune:
+        ctx = Context(ctx.idx, ctx.rng, ctx.second, prune=False)
     prev = None
     steps, fns = t.steps, compiled(t)
     if reuse_prefix and drop:
-        for st in steps[:drop]:
-            local[st.name] = env[st.name]
+        # every step reads only slots and earlier steps, and each step from `drop` on is rewritten before it is
+        # read: the instance's own dict is the right starting point
+        local = dict(env)
         prev = env[steps[drop - 1].name]
         steps, fns = steps[drop:], fns[drop:]
+    else:
+        local = {k: v for k, v in env.items() if k in t.slots}
     for st, fn in zip(steps, fns):
         if st.index == drop:
             if st.op in ("relate", "between", "at"):
@@ -655,6 +658,7 @@ def degenerate_steps(t: Template, env: dict[str, Any], ctx: Context) -> list[int
     full = answer_key(env[t.steps[-1].name])
     bad = []
     steps = t.steps
+    ctx = Context(ctx.idx, ctx.rng, ctx.second, prune=False)  # one replay context for every dropped step
     for st in steps:
         if st.op not in ops.DROPPABLE:
             continue
