@@ -663,10 +663,13 @@ def degenerate_steps(t: Template, env: dict[str, Any], ctx: Context) -> list[int
         if st.op not in ops.DROPPABLE:
             continue
         k = st.index
-        if (st.op in _SET_OPS and k + 2 == len(steps) and steps[-1].op == "locate" and "of" not in steps[-1].args
+        if k + 1 == len(steps) and st.op in ("compare", "is_at"):
+            continue  # dropping the yes/no step that is the answer leaves no answer at all (replay: "empty")
+        if (st.op in _CHAIN_OPS and k + 2 == len(steps) and steps[-1].op == "locate" and "of" not in steps[-1].args
                 and st.args.get("in") is None):
-            # dropping the set step that feeds the final locate hands locate this step's input set; unless that
-            # set is a single object the replay has no answer (not_unique), so it cannot be degenerate
+            # dropping the step that feeds the final locate (a set step, superlative or ordinal) hands locate
+            # this step's input set; unless that set is a single object the replay has no answer (not_unique),
+            # so it cannot be degenerate
             before = env[steps[k - 1].name] if k > 0 else None
             if not isinstance(before, frozenset):
                 before = ctx.idx.all  # what _set_in hands the step
