@@ -18,7 +18,7 @@ from refspatial_gen.core.model import FreeSpaceRegion, Node, RelationFact, Scene
 from refspatial_gen.graph.constants import Thresholds
 from refspatial_gen.graph.relations import REGISTRY
 from refspatial_gen.graph.relations.base import decide
-from refspatial_gen.graph.relations.common import TRUE, UNDECIDED, holds_of
+from refspatial_gen.graph.relations.common import TRUE, holds_of
 from refspatial_gen.graph.relations.containment import between_arrays
 from refspatial_gen.graph.relations.orientation import SECTORS, angle_between, bearings, sector_codes
 from refspatial_gen.graph.relations.sizes import DERIVED, compare
