@@ -273,6 +273,11 @@ class GraphIndex:
         rows = {key: self.between_row(*key) for key in self._between_pairs()}
         return {key: (t, u) for key, (t, u) in rows.items() if t or u}
 
+    def largest_between_row(self) -> int:
+        """The most objects decided between any one anchor pair (0 when none)."""
+        self._between_pairs()
+        return max((len(t) for t, _u in self._brow.values()), default=0)
+
     def between_row(self, b: int, c: int) -> tuple[frozenset, frozenset]:
         """One entry of between_rows (b < c). Every anchor pair's row is built with the arrays (most rows
         are empty and share one constant), so a search trying many anchor pairs pays a dict lookup each."""

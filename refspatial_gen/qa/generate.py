@@ -146,6 +146,7 @@ def _generate(frames: list[Frame], idxs: list[SceneIndex], sample_rng: np.random
     mv_count = 0
     exhausted: set[int] = set()
     fams = [f for f in config.families if f.weight > 0 and f.templates]
+    views = [Context(ix, rng) for ix in idxs]  # single-view contexts (read-only: shared by the attempts)
     capped = any(f.max_per_sample is not None for f in fams)
     usable, weights = fams, [f.weight for f in fams]
     for _attempt in range(config.attempts + config.max_per_sample):
@@ -167,7 +168,7 @@ def _generate(frames: list[Frame], idxs: list[SceneIndex], sample_rng: np.random
             fids = [frames[i].frame_id, frames[j].frame_id]
         else:
             i = int(rng.integers(len(frames)))
-            ctx = Context(idxs[i], rng)
+            ctx = views[i]
             fids = [frames[i].frame_id]
         qid = f"{frames[0].frame_id}:{len(out):02d}"
         qa = _instantiate(t, ctx, rng, config, bal, seen, fids, qid)
@@ -542,11 +543,11 @@ def _build(t: Template, env: dict, ans: Any, ctx: Context, rng: SampleRng, frame
         answer = fmt_points([ans.point])
         if ans.region is not None:
             r = ans.region
+            poly, world = idx.region_rounded(r)
             struct = {"kind": "region", "points": [list(ans.point)],
                       "region": {"surface_id": r.surface_id, "kind": r.kind, "anchors": list(r.anchors),
                                  "label": r.label, "z": round(float(r.z), 6),
-                                 "polygon_xy": [[round(float(x), 5), round(float(y), 5)] for x, y in r.polygon_xy],
-                                 "point_world": [round(float(x), 6) for x in r.point_world]}}
+                                 "polygon_xy": [list(p) for p in poly], "point_world": list(world)}}
             targets = [int(a) for a in r.anchors if isinstance(a, (int, np.integer))]
         else:
             struct = {"kind": "points", "points": [list(ans.point)], "object_ids": [int(ans.object_id)]}

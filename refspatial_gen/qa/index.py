@@ -119,6 +119,7 @@ class SceneIndex:
         self._sizes: dict[int, tuple[float, float, float]] = {}
         self._key_points: dict[int, list[float]] = {}
         self._cam_rows: list | None = None
+        self._region_rounded: dict[int, tuple] = {}
         self._has_true_spot: bool | None = None
         self._largest_between_row: int | None = None
         # executor: slot signature (executor.slot_signature) -> unshuffled candidates in this frame
@@ -532,9 +533,17 @@ class SceneIndex:
         its anchor pair's row, so a step bound to keep more than this rejects every binding."""
         v = self._largest_between_row
         if v is None:
-            rows = self.gindex.between_rows() if self.gindex.world else {}
-            v = self._largest_between_row = max((len(t) for t, _u in rows.values()), default=0)
+            v = self._largest_between_row = self.gindex.largest_between_row() if self.gindex.world else 0
         return v
+
+    def region_rounded(self, region: FreeSpaceRegion) -> tuple[tuple, tuple]:
+        """A free-space region's polygon (5 decimals) and world point (6 decimals) as answers record them,
+        rounded once per region and sample (callers copy before storing)."""
+        hit = self._region_rounded.get(id(region))
+        if hit is None or hit[0] is not region:
+            poly = tuple((round(float(x), 5), round(float(y), 5)) for x, y in region.polygon_xy)
+            hit = self._region_rounded[id(region)] = (region, poly, tuple(round(float(x), 6) for x in region.point_world))
+        return hit[1], hit[2]
 
     def key_point(self, object_id: int) -> list[float]:
         """The object's answer point rounded as key steps store it (render.round_key), a fresh list each call."""
