@@ -9,19 +9,14 @@ import numpy as np
 import pytest
 
 from refspatial_gen.core.model import RelationFact, SceneGraph
-from refspatial_gen.graph import build_graph
 from refspatial_gen.graph.query import GraphIndex
 from refspatial_gen.qa.index import Reject, SceneIndex
-from refspatial_gen.sources.toy import toy_frame
+from tests.helpers.scenes import toy_scenes
 
 
 @pytest.fixture(scope="module")
 def scenes():
-    out = []
-    for seed in range(4):
-        rng = np.random.default_rng(100 + seed)
-        f = toy_frame(rng, 7, frame_id=f"toy:{seed:06d}")
-        out.append((f, build_graph(f)))
+    out = toy_scenes(range(100, 104), 7)
     # toy scenes have no containment or contact: a copy of one graph with stored inside / touching instances
     # (true, undecided, and touching stored in the reverse direction) exercises those tables too
     f, g = out[0]
@@ -369,10 +364,7 @@ def test_between_shortcut_only_skips_searches_that_cannot_succeed(scenes):
     cfg = default_config()
     templates = [t for fam in cfg.families for t in fam.templates if _between_need(t)]
     skipped = searched = 0
-    small = []  # five-object scenes: some have at most one object between any two
-    for seed in (104, 105, 106):
-        f = toy_frame(np.random.default_rng(seed), 5, frame_id=f"toy:{seed:06d}")
-        small.append((f, build_graph(f)))
+    small = toy_scenes((104, 105, 106), 5)  # five-object scenes: some have at most one object between any two
     for f, g in [*scenes, *small]:
         idx = SceneIndex(f, g)
         rows = [idx.between_entry(b, c)[0] for b, c in permutations(idx.ids, 2)]

@@ -10,13 +10,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from refspatial_gen.graph import build_graph
 from refspatial_gen.qa.bench import default_config
 from refspatial_gen.qa.executor import Context, Search, answer_chain
 from refspatial_gen.qa.index import SceneIndex
 from refspatial_gen.qa.sample_rng import SampleRng
 from refspatial_gen.qa.templates import load_template_file
-from refspatial_gen.sources.toy import toy_frame
+from tests.helpers.scenes import toy_scenes
 
 
 def _templates():
@@ -50,12 +49,7 @@ templates:
 
 @pytest.fixture(scope="module")
 def scenes():
-    out = []
-    for seed in range(5):
-        rng = np.random.default_rng(300 + seed)
-        f = toy_frame(rng, 8, frame_id=f"toy:{seed:06d}")
-        out.append((f, build_graph(f)))
-    return out
+    return toy_scenes(range(300, 305), 8)
 
 
 def _answer(env, t):
