@@ -279,3 +279,39 @@ def test_key_steps_always_name_their_object(scenes, cfg):
         _check_key_phrases(ok[::-1], {}, [1], idx)  # an unnamed object on the way is not
     with pytest.raises(Reject):
         _check_key_phrases([KeyStep("Size", "the target cup", [0.1, 0.1, 0.1])], {}, [1], idx)
+
+
+def test_marks_name_the_asked_view_in_a_multi_view_sample(cfg):
+    """Visual-choice marks carry the position of the asked frame among the sample's frames (the exporter and
+    the preview draw them on that image); verify rejects marks pointing at another view."""
+    import dataclasses
+
+    from refspatial_gen.core.model import Sample
+    from refspatial_gen.qa.verify import verify_sample
+
+    rng = np.random.default_rng(5)
+    fa = toy_frame(rng, 7, frame_id="mk:0")
+    boxes = [(o.category, o.attributes["color"], o.box) for o in fa.objects]
+    fb = toy_frame(rng, boxes=boxes, frame_id="mk:1")
+    fa.scene_id = fb.scene_id = "mk"
+    ga, gb = build_graph(fa), build_graph(fb)
+    only = dataclasses.replace(cfg, families=[f for f in cfg.families if f.name == "visual_choice"])
+    views = Counter()
+    planted_checks = 0
+    for k in range(20):
+        qa = generate_qa([fa, fb], [ga, gb], np.random.default_rng(k), only)
+        sample = Sample("s", [fa, fb], [ga, gb], qa, "s", {})
+        assert verify_sample(sample) == []
+        for q in qa:
+            marks = q.answer_struct.get("marks") or []
+            for m in marks:
+                assert [fa, fb][m["view"]].frame_id == q.frame_ids[0]
+                views[m["view"]] += 1
+        planted = [q for q in qa if q.answer_struct.get("marks") and q.frame_ids[0] == "mk:1"]
+        if planted:
+            q = planted[0]
+            q.answer_struct["marks"][0]["view"] = 0
+            reasons = [r["reason"] for r in verify_sample(Sample("s", [fa, fb], [ga, gb], [q], "s", {}))]
+            assert any("not on the asked frame" in r for r in reasons), reasons
+            planted_checks += 1
+    assert views[0] and views[1] and planted_checks  # questions were asked on both views, a wrong view caught

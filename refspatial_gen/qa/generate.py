@@ -171,9 +171,9 @@ def _generate(frames: list[Frame], idxs: list[SceneIndex], sample_rng: np.random
             ctx = views[i]
             fids = [frames[i].frame_id]
         qid = f"{frames[0].frame_id}:{len(out):02d}"
-        qa = _instantiate(t, ctx, rng, config, bal, seen, fids, qid)
+        qa = _instantiate(t, ctx, rng, config, bal, seen, fids, qid, view=i)
         if qa is None and t.answer_type == ops.BOOL:  # the other answer may exist (the balancer catches up)
-            qa = _instantiate(t, ctx, rng, config, bal, seen, fids, qid, flip=True)
+            qa = _instantiate(t, ctx, rng, config, bal, seen, fids, qid, flip=True, view=i)
         if qa is None:
             exhausted.add(id(t))  # no binding passed in this sample: do not spend more attempts on it
             continue
@@ -235,7 +235,8 @@ def _is_multiview(t: Template) -> bool:
 
 
 def _instantiate(t: Template, ctx: Context, rng: SampleRng, config: QAConfig, bal: Balancer,
-                 seen: set, frame_ids: list[str], qa_id: str, flip: bool = False) -> QAPair | None:
+                 seen: set, frame_ids: list[str], qa_id: str, flip: bool = False, view: int = 0) -> QAPair | None:
+    """One checked QA pair of template t on ctx's frame (`view`: that frame's position in the sample), or None."""
     if _needs_spot(t) and not ctx.idx.has_true_spot:
         return None  # an `at` step keeps objects at a corner/edge; with none anywhere every binding is empty
     need = _between_need(t)
@@ -270,7 +271,7 @@ def _instantiate(t: Template, ctx: Context, rng: SampleRng, config: QAConfig, ba
             return None
         try:
             extra = _bind_text_only(t, env, ctx)
-            qa = _build(t, {**env, **extra}, ans, ctx, rng, frame_ids, qa_id)
+            qa = _build(t, {**env, **extra}, ans, ctx, rng, frame_ids, qa_id, view)
         except Reject:
             return None
         seen.add(key)
@@ -524,7 +525,9 @@ def _build_plan(t: Template) -> _BuildPlan:
 
 
 def _build(t: Template, env: dict, ans: Any, ctx: Context, rng: SampleRng, frame_ids: list[str],
-           qa_id: str) -> QAPair:
+           qa_id: str, view: int = 0) -> QAPair:
+    """The QA pair's record. `view` is the asked frame's position in the sample's frames: drawn marks name it,
+    so the exporter and the preview draw them on that image."""
     idx = ctx.idx
     plan = _build_plan(t)
     relations = set(plan.relations)
@@ -582,7 +585,7 @@ def _build(t: Template, env: dict, ans: Any, ctx: Context, rng: SampleRng, frame
         if raw.marks:
             style = next(st.args["style"].value if "style" in st.args else "box" for st in t.steps if st.op == "mark")
             struct["style"] = style
-            struct["marks"] = [{"label": LETTERS[i], "object_id": int(o), "style": style, "view": 0,
+            struct["marks"] = [{"label": LETTERS[i], "object_id": int(o), "style": style, "view": view,
                                 "box": [round(float(x), 1) for x in idx.objects[o].bbox2d]
                                 if idx.objects[o].bbox2d is not None else None,
                                 "point": list(idx.point(o))} for i, o in enumerate(opts)]

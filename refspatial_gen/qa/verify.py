@@ -337,8 +337,9 @@ def _answer_key(v: Any) -> Any:
 
 
 def verify_qa(qa: QAPair, frames: dict[str, Frame], graphs: dict[str, SceneGraph],
-              worlds: dict[str, _World]) -> list[str]:
-    """Reasons this QA pair fails (empty when it passes)."""
+              worlds: dict[str, _World], order: list[str] | None = None) -> list[str]:
+    """Reasons this QA pair fails (empty when it passes). `order`: the sample's frame ids in stored order
+    (drawn marks name their image by position in it)."""
     problems: list[str] = []
     if not qa.frame_ids or any(f not in frames or f not in graphs for f in qa.frame_ids):
         return [f"frame ids {qa.frame_ids} not in the sample"]
@@ -385,6 +386,7 @@ def verify_qa(qa: QAPair, frames: dict[str, Frame], graphs: dict[str, SceneGraph
             if isinstance(got, frozenset) and isinstance(stored, list) and sorted(got) != sorted(stored):
                 problems.append(f"step {k + 1} ({st['op']}) stored {sorted(stored)} but re-evaluates to {sorted(got)}")
         problems += _check_answer(qa, final, w, frame, graph)
+    problems += _check_marks(qa, w, order if order is not None else list(frames))
     # --- trace and key steps
     problems += _check_trace(qa, w)
     return problems
@@ -511,6 +513,34 @@ def _check_answer(qa: QAPair, final: Any, w: _World, frame: Frame, graph: SceneG
     return [f"unknown answer kind {kind!r}"]
 
 
+def _check_marks(qa: QAPair, w: _World, order: list[str]) -> list[str]:
+    """Drawn marks belong on the asked image: each names the position of the QA's frame in the sample, an
+    object of that frame, its 2D box as stored, and (when given) a point inside that object's visible mask."""
+    from refspatial_gen.core.mask import denormalise_point
+
+    out: list[str] = []
+    W, H = w.frame.camera.width, w.frame.camera.height
+    for m in (qa.answer_struct or {}).get("marks") or []:
+        label, view = m.get("label"), m.get("view", 0)
+        if not isinstance(view, int) or not 0 <= view < len(order) or order[view] != qa.frame_ids[0]:
+            out.append(f"mark ({label}) is drawn on view {view!r}, not on the asked frame {qa.frame_ids[0]}")
+            continue
+        oid = m.get("object_id")
+        o = w.objects.get(oid)
+        if o is None:
+            out.append(f"mark ({label}) names object {oid!r}, which is not in the frame")
+            continue
+        box = m.get("box")
+        if box is not None and (o.bbox2d is None or any(abs(float(a) - float(b)) > 0.051 for a, b in zip(box, o.bbox2d))):
+            out.append(f"mark ({label}) box {box} is not object {oid}'s 2D box")
+        pt = m.get("point")
+        if pt is not None:
+            x, y = denormalise_point(float(pt[0]), float(pt[1]), W, H)
+            if not w.mask(oid)[y, x]:
+                out.append(f"mark ({label}) point {pt} is outside object {oid}'s visible mask")
+    return out
+
+
 def _find_region(graph: SceneGraph, r: dict):
     for reg in graph.free_space:
         if reg.surface_id == r.get("surface_id") and reg.kind == r.get("kind") \
@@ -585,10 +615,11 @@ def verify_sample(sample: Sample) -> list[dict]:
     """Failures of one sample's QA pairs: [{"sample_id", "qa_id", "template", "reason"}]; [] = all pass."""
     frames = {f.frame_id: f for f in sample.frames}
     graphs = {g.frame_id: g for g in sample.graphs}
+    order = [f.frame_id for f in sample.frames]
     worlds: dict[str, _World] = {}
     out = []
     for qa in sample.qa:
-        for reason in verify_qa(qa, frames, graphs, worlds):
+        for reason in verify_qa(qa, frames, graphs, worlds, order):
             out.append({"sample_id": sample.sample_id, "qa_id": qa.qa_id, "template": qa.template, "reason": reason})
     return out
 

@@ -5,7 +5,7 @@ masks, so a marked copy is a pure function of stored data; storing it would doub
 
 Contract with the QA engine (answer_struct): a QA pair whose image needs marks carries
   answer_struct["marks"] = [{"label": "A", "object_id": 3, "style": "box" | "point", "view": 0}, ...]
-("view" defaults to 0, "style" to "box"). Box style draws the object's 2D box (bbox2d) with its label;
+("view", the asked frame's position among the sample's frames, defaults to 0; "style" to "box"). Box style draws the object's 2D box (bbox2d) with its label;
 point style draws a dot at the object's answer point (its graph node point, else its mask answer pixel).
 """
 
