@@ -29,17 +29,12 @@ class SampleRng:
         return int(self.random() * n)
 
     def permutation(self, n: int) -> list[int]:
-        """A uniformly random order of range(n) (Fisher-Yates)."""
-        p = list(range(n))
-        r = self.random
-        for i in range(n - 1, 0, -1):
-            j = int(r() * (i + 1))
-            p[i], p[j] = p[j], p[i]
-        return p
+        """A uniformly random order of range(n)."""
+        return self.shuffled(range(n))
 
     def shuffled(self, items) -> list:
-        """A new list of `items` in random order: the same draws and the same order as
-        [items[k] for k in permutation(len(items))], without the index list."""
+        """A new list of `items` in a uniformly random order (Fisher-Yates): the same draws and the same order
+        as [items[k] for k in permutation(len(items))]."""
         p = list(items)
         r = self.random
         for i in range(len(p) - 1, 0, -1):
