@@ -359,10 +359,10 @@ def test_between_shortcut_only_skips_searches_that_cannot_succeed(scenes):
     it: largest_between_row is the largest true row, and with it below the bound the search finds nothing."""
     from refspatial_gen.qa.bench import default_config
     from refspatial_gen.qa.executor import Context, Search
-    from refspatial_gen.qa.generate import _between_need
+    from refspatial_gen.qa.generate import _needs
 
     cfg = default_config()
-    templates = [t for fam in cfg.families for t in fam.templates if _between_need(t)]
+    templates = [t for fam in cfg.families for t in fam.templates if _needs(t).between]
     skipped = searched = 0
     small = toy_scenes((104, 105, 106), 5)  # five-object scenes: some have at most one object between any two
     for f, g in [*scenes, *small]:
@@ -370,7 +370,7 @@ def test_between_shortcut_only_skips_searches_that_cannot_succeed(scenes):
         rows = [idx.between_entry(b, c)[0] for b, c in permutations(idx.ids, 2)]
         assert idx.largest_between_row == max(len(r) for r in rows)
         for t in templates:
-            if idx.largest_between_row < _between_need(t):
+            if idx.largest_between_row < _needs(t).between:
                 assert not list(Search(t, Context(idx, np.random.default_rng(0)), 10 ** 6).instances()), t.name
                 skipped += 1
             else:

@@ -226,29 +226,46 @@ def _pick(weights: list[float], rng: SampleRng) -> int:
     return max(i for i, w in enumerate(weights) if w > 0)
 
 
-def _is_multiview(t: Template) -> bool:
-    """Does the template need a second view (asked every attempt: computed once per compiled template)."""
-    v = t.__dict__.get("_multiview")
+class _Needs(NamedTuple):
+    """What generation asks of a template on every attempt, read from its program once."""
+
+    multiview: bool  # a camera_turn step: needs a second view
+    spot: bool  # an `at` step: some object must be at a corner or edge
+    between: int  # the most objects any `between` step must keep (its search bound; 0 = no such step)
+    between_region: bool  # free space between two anchors: the graph must have such a region
+    slot_names: tuple  # sorted: the dedup key reads the instance's slots in this order
+
+
+def _needs(t: Template) -> _Needs:
+    v = t.__dict__.get("_needs")
     if v is None:
-        v = t.__dict__["_multiview"] = any(s.op == "camera_turn" for s in t.steps)
+        steps = t.steps
+        v = t.__dict__["_needs"] = _Needs(
+            any(st.op == "camera_turn" for st in steps), any(st.op == "at" for st in steps),
+            max([max(st.min_out, 1) for st in steps if st.op == "between"] or [0]),
+            any(st.op == "free_space" and "anchors" in st.args for st in steps), tuple(sorted(t.slots)))
     return v
+
+
+def _is_multiview(t: Template) -> bool:
+    return _needs(t).multiview
 
 
 def _instantiate(t: Template, ctx: Context, rng: SampleRng, config: QAConfig, bal: Balancer,
                  seen: set, frame_ids: list[str], qa_id: str, flip: bool = False, view: int = 0) -> QAPair | None:
     """One checked QA pair of template t on ctx's frame (`view`: that frame's position in the sample), or None."""
-    if _needs_spot(t) and not ctx.idx.has_true_spot:
+    needs = _needs(t)
+    if needs.spot and not ctx.idx.has_true_spot:
         return None  # an `at` step keeps objects at a corner/edge; with none anywhere every binding is empty
-    need = _between_need(t)
-    if need and ctx.idx.largest_between_row < need:
-        return None  # a `between` step must keep `need` objects; no anchor pair has that many between it
-    if _needs_between_region(t) and not ctx.idx.has_between_region:
+    if needs.between and ctx.idx.largest_between_row < needs.between:
+        return None  # a `between` step must keep that many objects; no anchor pair has that many between it
+    if needs.between_region and not ctx.idx.has_between_region:
         return None  # free space between two anchors, and the graph has no such region
     want = bal.want_bool(rng) if t.answer_type == ops.BOOL else None
     if flip and want is not None:
         want = not want
     last = t.steps[-1].name
-    slots = _slot_names(t)
+    slots = needs.slot_names
     is_obj = t.answer_type == ops.OBJECT
     idx = ctx.idx
 
@@ -279,38 +296,6 @@ def _instantiate(t: Template, ctx: Context, rng: SampleRng, config: QAConfig, ba
         return qa
     answers = bal.allowed_answers(idx) if any(answer_chain(t)) else None
     return Search(t, ctx, config.budget, answers).first(accept)
-
-
-def _needs_spot(t: Template) -> bool:
-    """Does the program filter by a corner/edge (an `at` step, which must keep at least one object)?"""
-    v = t.__dict__.get("_needs_spot")
-    if v is None:
-        v = t.__dict__["_needs_spot"] = any(st.op == "at" for st in t.steps)
-    return v
-
-
-def _between_need(t: Template) -> int:
-    """The most objects any `between` step of the program must keep (its search bound; 0 = no such step)."""
-    v = t.__dict__.get("_between_need")
-    if v is None:
-        v = t.__dict__["_between_need"] = max([max(st.min_out, 1) for st in t.steps if st.op == "between"] or [0])
-    return v
-
-
-def _needs_between_region(t: Template) -> bool:
-    """Does the program ask for the free space between two anchors (a region the graph may not have)?"""
-    v = t.__dict__.get("_needs_between_region")
-    if v is None:
-        v = t.__dict__["_needs_between_region"] = any(st.op == "free_space" and "anchors" in st.args for st in t.steps)
-    return v
-
-
-def _slot_names(t: Template) -> tuple:
-    """The template's slot names, sorted (the dedup key reads them from each instance in this order)."""
-    v = t.__dict__.get("_slot_names")
-    if v is None:
-        v = t.__dict__["_slot_names"] = tuple(sorted(t.slots))
-    return v
 
 
 def _one(v: Any) -> int:

@@ -285,19 +285,28 @@ class SceneIndex:
         return (a != b and a != c and b != c and type(a) is int and type(b) is int and type(c) is int
                 and a in nodes and b in nodes and c in nodes)
 
-    def _spot_fact(self, relation: str, args: tuple) -> Fact | None:
+    def _spot_rule(self, relation: str, args: tuple) -> Any:
         """corner/edge(a, surface, label) by GraphIndex's rule without building RelationFacts: the stored
-        instance, else False when a stands on that surface and the surface has that label, else None."""
+        instance, else False when a stands on that surface and the surface has that label, else None (not
+        evaluated); _MISS when the arguments are not a known object and a labelled spot (general path)."""
         a, sid, label = args
         if type(a) is not int or a not in self.nodes or not self.gindex.world or len({a, sid, label}) < 3:
-            return self._general_fact(relation, args)
+            return _MISS
         f = self.gindex._facts.get((relation, args))
         if f is not None:
-            return Fact(f.holds, float(f.value))
+            return f
         labels = self.gindex.surfaces.get(sid, {}).get("corners" if relation == "corner" else "edges", [])
         if self.nodes[a].attributes.get("surface") != sid or label not in labels:
             return None
-        return Fact(False, 0.0)
+        return False
+
+    def _spot_fact(self, relation: str, args: tuple) -> Fact | None:
+        r = self._spot_rule(relation, args)
+        if r is _MISS:
+            return self._general_fact(relation, args)
+        if r is None or r is False:
+            return None if r is None else Fact(False, 0.0)
+        return Fact(r.holds, float(r.value))
 
     def _general_fact(self, relation: str, args: tuple) -> Fact | None:
         f = self.gindex.fact(relation, *args)
@@ -357,17 +366,9 @@ class SceneIndex:
                     if c != 3:
                         return _HOLDS[c]
         elif (relation == "corner" or relation == "edge") and len(args) == 3:
-            a, sid, label = args
-            if type(a) is int and a in self.nodes and self.gindex.world and len({a, sid, label}) == 3:
-                # _spot_fact's rule, without a Fact: the stored instance, else False when a stands on that
-                # surface and the surface has that label, else not evaluated
-                f = self.gindex._facts.get((relation, args))
-                if f is not None:
-                    return f.holds
-                labels = self.gindex.surfaces.get(sid, {}).get("corners" if relation == "corner" else "edges", [])
-                if self.nodes[a].attributes.get("surface") != sid or label not in labels:
-                    return NO_FACT
-                return False
+            r = self._spot_rule(relation, args)
+            if r is not _MISS:
+                return NO_FACT if r is None else (False if r is False else r.holds)
         f = self.fact(relation, args)
         return NO_FACT if f is None else f.holds
 
