@@ -14,7 +14,7 @@ pytestmark = pytest.mark.slow
 
 def _run(recipe: Path, inp: Path, out: Path, scenes: int) -> dict:
     from refspatial_gen.cli import main
-    from refspatial_gen.qa.commands import verify_dir
+    from refspatial_gen.tools.verify_dir import verify_dir
 
     rc = main(["shards", "--recipe", str(recipe), "--input", str(inp), "--out", str(out), "--scenes", str(scenes),
                "--workers", "1", "--no-report", "--quiet"])

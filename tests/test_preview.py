@@ -286,7 +286,7 @@ def test_write_gallery_files_links_and_escaping(tmp_path):
 def _preview_cli(argv):
     import argparse
 
-    from refspatial_gen.run import preview_commands
+    from refspatial_gen.cli import preview as preview_commands
 
     parser = argparse.ArgumentParser(prog="refspatial-gen")
     preview_commands.register(parser.add_subparsers(dest="command", required=True))
@@ -297,7 +297,7 @@ def _preview_cli(argv):
 def test_preview_command_is_registered_and_reports_missing_shards(tmp_path, capsys):
     from refspatial_gen import cli
 
-    assert "refspatial_gen.run.preview_commands" in cli.COMMAND_MODULES
+    assert "refspatial_gen.cli.preview" in cli.COMMAND_MODULES
     args, rc = _preview_cli(["preview", str(tmp_path), "--out", str(tmp_path / "o"), "--n", "3", "--seed", "5"])
     assert (args.n, args.seed) == (3, 5) and rc == 1
     assert "no .mcap shards" in capsys.readouterr().err

@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 from refspatial_gen.cli import main
 from refspatial_gen.core.errors import RecipeError, RecipeErrors
 from refspatial_gen.qa.config import load_qa_config
-from refspatial_gen.qa.lint import lint_file
+from refspatial_gen.tools.lint import lint_file
 from refspatial_gen.qa.templates import compile_templates, load_template_file
 from refspatial_gen.qa.text import TextSyntaxError, parse, placeholders, render
 from refspatial_gen.yamlpos import load_yaml

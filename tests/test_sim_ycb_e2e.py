@@ -2,7 +2,7 @@
 
 import pytest
 
-from refspatial_gen.qa.commands import verify_dir
+from refspatial_gen.tools.verify_dir import verify_dir
 from refspatial_gen.recipe import load_recipe
 from refspatial_gen.run.executor import RecipeRef, run_plan
 from refspatial_gen.shards.reader import read_sample_meta

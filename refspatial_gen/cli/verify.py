@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
 
 
 def register(sub) -> None:
@@ -22,7 +21,7 @@ def register(sub) -> None:
 
 
 def _lint(args: argparse.Namespace) -> int:
-    from refspatial_gen.qa.lint import lint_paths
+    from refspatial_gen.tools.lint import lint_paths
 
     errors = lint_paths(args.paths)
     for e in errors:
@@ -32,45 +31,9 @@ def _lint(args: argparse.Namespace) -> int:
     return 1 if errors else 0
 
 
-def iter_dir_samples(d: str | Path):
-    """Every sample of every shard listed in DIR/index.json, in index order."""
-    from refspatial_gen.shards.index import read_index
-    from refspatial_gen.shards.reader import read_samples
-
-    d = Path(d)
-    index = read_index(d)
-    for row in index["shards"]:
-        yield from read_samples(d / row["name"])
-
-
-def verify_dir(d: str | Path, max_failures: int = 1000) -> dict:
-    """Shard integrity (size and sha256 against index.json) first, then every QA pair.
-
-    A shard with an integrity problem is reported and its samples are not read (they cannot be trusted)."""
-    from refspatial_gen.qa.verify import verify_samples
-    from refspatial_gen.shards.integrity import check_shards
-
-    problems = check_shards(Path(d))
-    bad = {Path(p["file"]).name for p in problems}
-    out = verify_samples(_iter_trusted(d, bad))
-    out["shard_problems"] = problems
-    out["failures"] = out["failures"][:max_failures]
-    return out
-
-
-def _iter_trusted(d: str | Path, skip: set[str]):
-    """Samples of every shard in index.json except those named in `skip`, which are never opened (a corrupt
-    chunk would stop the reader before the report is written)."""
-    from refspatial_gen.shards.index import read_index
-    from refspatial_gen.shards.reader import read_samples
-
-    d = Path(d)
-    for row in read_index(d)["shards"]:
-        if row["name"] not in skip and (d / row["name"]).is_file():
-            yield from read_samples(d / row["name"])
-
-
 def _verify(args: argparse.Namespace) -> int:
+    from refspatial_gen.tools.verify_dir import verify_dir
+
     try:
         res = verify_dir(args.dir, args.max_failures)
     except ValueError as e:

@@ -10,13 +10,14 @@ from refspatial_gen import __version__
 from refspatial_gen.core.errors import RecipeError, RecipeErrors
 
 # Modules that add sub-commands: each defines `register(subparsers) -> None` and sets `func` on its parsers.
+# The CLI is the layer above the stages: stage packages never import it.
 COMMAND_MODULES = [
-    "refspatial_gen.run.preview_commands",
-    "refspatial_gen.run.commands",
-    "refspatial_gen.shards.commands",
-    "refspatial_gen.graph.commands",
-    "refspatial_gen.sources.sim.commands",
-    "refspatial_gen.qa.commands",
+    "refspatial_gen.cli.preview",
+    "refspatial_gen.cli.generate",
+    "refspatial_gen.cli.data",
+    "refspatial_gen.cli.relations",
+    "refspatial_gen.cli.sim",
+    "refspatial_gen.cli.verify",
 ]
 
 
