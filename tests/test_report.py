@@ -169,3 +169,25 @@ def test_internal_errors_are_flagged_and_escaped(tmp_path):
     assert "Internal errors (23)" in html and html.count("<pre>") == 20 and "3 more in run_log.json" in html
     assert "<b>input</b>" not in html and "&lt;b&gt;input&lt;/b&gt;" in html
     assert "refspatial-gen run report: toy.yaml" in html and '{&quot;kind&quot;: &quot;toy&quot;' in html
+
+
+def test_truth_counts_from_frames_graphs_and_sample_are_summed_merged_and_shown(tmp_path):
+    """Every truth check reports through one convention (frame / graph / sample meta); the run sums them."""
+    from refspatial_gen.core.model import Sample
+    from refspatial_gen.run import stats as S
+    from tests.helpers.scenes import toy_scenes
+
+    (f1, g1), (f2, g2) = toy_scenes([1, 2], 4)
+    f1.meta["truth"] = {"implausible_size": 2}
+    g1.meta["truth"] = {"below_visibility_floor": 1}
+    g2.meta["truth"] = {"below_visibility_floor": 3}
+    sample = Sample("s0", [f1, f2], [g1, g2], [], meta={"truth": {"colour_uncertain": 1}})
+    assert S.truth_counts(sample) == {"implausible_size": 2, "below_visibility_floor": 4, "colour_uncertain": 1}
+    a, b = S.empty_stats(), S.empty_stats()
+    S.add_sample(a, sample, "toy")
+    S.add_sample(b, sample, "toy")
+    merged = S.merge(a, b)
+    assert merged["truth"] == {"below_visibility_floor": 8, "colour_uncertain": 2, "implausible_size": 4}
+    stats = make_stats(truth=merged["truth"])
+    page = write_report(tmp_path, stats, RUN_LOG, RECIPE).read_text()
+    assert "below_visibility_floor" in page and "Truth checks" in page

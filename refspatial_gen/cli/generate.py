@@ -87,6 +87,7 @@ def cmd_stats(args) -> int:
     index = read_index(Path(args.dir))
     st = index["stats"]
     out = {k: st[k] for k in ("samples", "qa_pairs", "by_relation", "by_family", "by_steps", "by_source", "dropped")}
+    out["truth"] = st.get("truth", {})
     out["units"] = st.get("units", 0)
     out["shards"] = len(index["shards"])
     if args.json:
@@ -94,7 +95,7 @@ def cmd_stats(args) -> int:
         return 0
     print(f"{args.dir}: {out['samples']} samples, {out['qa_pairs']} QA pairs, {out['shards']} shards, "
           f"{sum(out['dropped'].values())} of {out['units']} units dropped")
-    for key in ("by_family", "by_steps", "by_source", "by_relation", "dropped"):
+    for key in ("by_family", "by_steps", "by_source", "by_relation", "dropped", "truth"):
         items = sorted(out[key].items(), key=lambda kv: (-kv[1], kv[0]))
         print(f"  {key}: " + ", ".join(f"{k}={v}" for k, v in items))
     return 0

@@ -373,6 +373,15 @@ def render_html(report: dict[str, Any]) -> str:
                               f'<div class="row">{_img(plots, "dropped_by_reason", "drops by reason")}{_table(drops, ("reason", "units"))}</div>'))
     else:
         parts.append(_section("Dropped units by reason", '<p class="muted">No unit was dropped.</p>'))
+    truth = _sorted_counts(stats.get("truth") or {})
+    if truth and any(v for _, v in truth):
+        parts.append(_section("Truth checks: objects and questions withheld, by reason",
+                              "<p>Objects a source removed, objects the scene graph kept out of questions, and "
+                              "questions rejected, because the scene model disagreed with independent evidence "
+                              "(size ranges, visibility, depth, instance labels). Thresholds are in the recipe.</p>"
+                              + _table(truth, ("reason", "count"))))
+    else:
+        parts.append(_section("Truth checks", '<p class="muted">No truth check withheld anything.</p>'))
 
     st = run_log.get("stage_seconds") or {}
     if st:
