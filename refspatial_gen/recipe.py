@@ -7,13 +7,13 @@ and reported as `file:line: message`.
 from __future__ import annotations
 
 import hashlib
-import importlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from refspatial_gen.core.errors import RecipeError, RecipeErrors
 from refspatial_gen.core.serialize import dumps
+from refspatial_gen.qa.config import load_qa_config
 from refspatial_gen.schema import Field, check_section
 from refspatial_gen.sources import get_source, source_names
 from refspatial_gen.yamlpos import line_of, load_yaml
@@ -112,15 +112,14 @@ def load_recipe(path: str | Path, *, seed: int | None = None, scenes: int | None
     qa_cfg = None
     deps: list[Path] = []
     if not errors:
-        qa_mod = importlib.import_module("refspatial_gen.qa")
         try:
-            qa_cfg = qa_mod.load_qa_config(top["qa"] or {}, file, lines)
+            qa_cfg = load_qa_config(top["qa"] or {}, file, lines)
         except RecipeError as e:
             errors.append(e)
         except RecipeErrors as e:
             errors.extend(e.errors)
         else:
-            deps = [Path(p) for p in getattr(qa_cfg, "source_files", [])]
+            deps = [Path(p) for p in qa_cfg.source_files]
     if errors:
         raise RecipeErrors(errors)
     h = hashlib.sha256(Path(file).read_bytes())
