@@ -64,6 +64,14 @@ class Registry(Generic[T]):
         self._loaded[name] = value
         return value
 
+    def __getitem__(self, name: str) -> T:
+        hit = self._loaded.get(name)  # the hot path (relation lookups): one dict read
+        return hit if hit is not None else self.get(name)
+
+    def values(self) -> list[T]:
+        """Every entry (imported), in registration order."""
+        return [self.get(n) for n in self._targets]
+
     def names(self) -> list[str]:
         """Registered names, in registration order."""
         return list(self._targets)

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from refspatial_gen.core.model import RelationFact
 
 TRUE, FALSE, UNDECIDED = 1, 0, -1
+# (value, codes, margin) matrices of a pair relation over object positions
+Matrices = tuple[Any, Any, Any]
 
 
 def decide_matrix(v: np.ndarray, margin: np.ndarray | float) -> np.ndarray:

@@ -10,9 +10,27 @@ from __future__ import annotations
 
 import numpy as np
 
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
 from refspatial_gen.core.model import RelationFact
-from refspatial_gen.graph.relations.base import Relation, decide, register
-from refspatial_gen.graph.relations.common import (TRUE, UNDECIDED, band_matrix, cached, fact, pair_facts, pos)
+from refspatial_gen.graph.constants import Thresholds
+from refspatial_gen.graph.relations.base import Cell, Relation, decide, register
+from refspatial_gen.graph.relations.common import (
+    TRUE,
+    UNDECIDED,
+    Matrices,
+    band_matrix,
+    cached,
+    fact,
+    pair_facts,
+    pos,
+)
+from refspatial_gen.graph.relations.lookup import stored_cell, symmetric_cell, symmetric_table
+from refspatial_gen.graph.scene import SceneGeom
+
+if TYPE_CHECKING:
+    from refspatial_gen.graph.tables import RelationTables
 
 G = ("gravity",)
 
@@ -103,35 +121,59 @@ def _depth_fact(geom, i: int) -> RelationFact:
     return RelationFact("depth", (int(geom.ids[i]),), True if ok else None, float(v), float(m))
 
 
-def facts(geom) -> list[RelationFact]:
-    out = [_depth_fact(geom, i) for i in np.argsort(geom.ids, kind="stable")]
-    if not geom.world_ok:
-        return out
-    out += pair_facts("distance", geom, *_distance(geom))
-    out += pair_facts("touching", geom, *_touching(geom), only={TRUE, UNDECIDED})
-    out += pair_facts("far_from", geom, *_far_from(geom), only={TRUE, UNDECIDED})
-    out += pair_facts("next_to", geom, *_next_to(geom), only={TRUE, UNDECIDED})
-    return out
+def _depth_stored(geom: SceneGeom) -> list[RelationFact]:
+    return [_depth_fact(geom, i) for i in np.argsort(geom.ids, kind="stable")]
 
 
-register(Relation("close", "distances", "world", 3, "d(B, C) minus d(A, C), surface distances (m)", "distance_margin",
-                  "A is closer to the anchor C than B is (nearest-surface distances)", storage="derived", needs=G,
-                  evaluate=_close_eval(False)))
+def _stored(rel: str, matrices: Callable[[SceneGeom], Matrices], sparse: bool
+            ) -> Callable[[SceneGeom], list[RelationFact]]:
+    return lambda geom: pair_facts(rel, geom, *matrices(geom), only={TRUE, UNDECIDED} if sparse else None)
+
+
+def _close_cell(t: RelationTables, args: tuple[Any, ...]) -> Cell | None:
+    """close(A, B, C) from the stored surface distances (far is its mirror: close(B, A, C))."""
+    if t.th is None:
+        return None
+    d, pos = t.distance_rows(), t.pos
+    a, b, c = pos.get(args[0]), pos.get(args[1]), pos.get(args[2])
+    if a is None or b is None or c is None:
+        return None
+    dac, dbc = d[a][c], d[b][c]
+    if dac == _INF or dbc == _INF:
+        return None
+    v = dbc - dac
+    m = t.th.distance_margin
+    return Cell(decide(v, m), v, m)
+
+
+_INF = float("inf")
+register(Relation("close", "distances", "world", 3, "d(B, C) minus d(A, C), surface distances (m)",
+                  "distance_margin", "A is closer to the anchor C than B is (nearest-surface distances)",
+                  storage="derived", needs=G, qa="anchored", evaluate=_close_eval(False), cell=_close_cell))
 register(Relation("far", "distances", "world", 3, "d(A, C) minus d(B, C), surface distances (m)", "distance_margin",
                   "mirror of close: A is farther from the anchor C than B is", storage="derived", mirror_of="close",
-                  needs=G, evaluate=_close_eval(True)))
+                  needs=G, qa="anchored", evaluate=_close_eval(True)))
 register(Relation("depth", "distances", "cam", 1, "median metric depth of A's visible pixels (m)", "quantity_tolerance",
-                  "the metric distance from the camera to the object (undecided when it spans more depth than the tolerance)",
-                  storage="unary", evaluate=_depth_eval))
+                  "the metric distance from the camera to the object (undecided when it spans more depth than the "
+                  "tolerance)", storage="unary", evaluate=_depth_eval, stored=_depth_stored, cell=stored_cell("depth")))
 register(Relation("distance", "distances", "world", 2, "minimum surface-to-surface distance (m)", "quantity_tolerance",
                   "metric distance between two objects' nearest surfaces (centre distance in node attributes)",
-                  storage="symmetric", needs=G, evaluate=_sym_eval(_distance, "distance")))
-register(Relation("touching", "distances", "world", 2, "minimum surface distance (m)", "touch_distance, touch_band",
-                  "the objects' surfaces are within the touch distance (source-dependent: 1 cm sim, 5 cm scans)",
-                  storage="sparse", needs=G, evaluate=_sym_eval(_touching, "touching")))
-register(Relation("far_from", "distances", "world", 2, "minimum surface distance (m)", "far_from_distance, far_from_band",
-                  "the objects' nearest surfaces are farther apart than the scene-scaled distance (0.3 m tabletop, 1 m room)",
-                  storage="sparse", needs=G, evaluate=_sym_eval(_far_from, "far_from")))
-register(Relation("next_to", "distances", "world", 2, "minimum surface distance (m)", "next_to_distance, distance_margin",
-                  "the objects stand side by side (sharing a height range) with a small gap", storage="sparse",
-                  needs=G, spec=False, evaluate=_sym_eval(_next_to, "next_to")))
+                  storage="symmetric", needs=G, evaluate=_sym_eval(_distance, "distance"),
+                  stored=_stored("distance", _distance, False), cell=symmetric_cell("distance", None)))
+
+
+def _contact(rid: str, matrices: Callable[[SceneGeom], Matrices], absent: Callable[[Thresholds], float],
+             margin: str, definition: str, spec: bool = True) -> None:
+    """A sparse symmetric distance relation: absent instances of a pair with a distance are False."""
+    register(Relation(rid, "distances", "world", 2, "minimum surface distance (m)", margin, definition,
+                      storage="sparse", needs=G, spec=spec, qa="pairwise", evaluate=_sym_eval(matrices, rid),
+                      stored=_stored(rid, matrices, True), cell=symmetric_cell(rid, absent),
+                      table=symmetric_table(rid)))
+
+
+_contact("touching", _touching, lambda th: th.touch_band, "touch_distance, touch_band",
+         "the objects' surfaces are within the touch distance (source-dependent: 1 cm sim, 5 cm scans)")
+_contact("far_from", _far_from, lambda th: th.far_from_band, "far_from_distance, far_from_band",
+         "the objects' nearest surfaces are farther apart than the scene-scaled distance (0.3 m tabletop, 1 m room)")
+_contact("next_to", _next_to, lambda th: th.distance_margin, "next_to_distance, distance_margin",
+         "the objects stand side by side (sharing a height range) with a small gap", spec=False)

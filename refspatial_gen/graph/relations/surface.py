@@ -9,11 +9,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
 from refspatial_gen.core.model import RelationFact
-from refspatial_gen.graph.scene import roll_next
-from refspatial_gen.graph.relations.base import SURFACE_SOURCES, Relation, register
+from refspatial_gen.graph.relations.base import SURFACE_SOURCES, Cell, Relation, register
 from refspatial_gen.graph.relations.common import FALSE, TRUE, UNDECIDED, cached, pos
+from refspatial_gen.graph.scene import SceneGeom, roll_next
 from refspatial_gen.graph.support import get_supports, surface_polygon
+
+if TYPE_CHECKING:
+    from refspatial_gen.graph.tables import RelationTables
 
 EDGE_AXIS_TOLERANCE = np.deg2rad(30.0)  # an edge's outward normal within this of a viewer axis gets a name
 CORNER_SEPARATION = 0.15  # corner coordinates must differ from the centre by this share of the extent
@@ -99,18 +105,44 @@ def _corner_edge(geom):
     return cached(geom, "surface:corner_edge", f)
 
 
-def facts(geom) -> list[RelationFact]:
-    if not geom.world_ok:
-        return []
-    th = geom.th
-    out = []
-    items = _corner_edge(geom)
-    for key in sorted(items, key=lambda k: (k[0], int(geom.ids[k[1]]), k[2], k[3])):
-        code, v = items[key]
-        if code in (TRUE, UNDECIDED):
-            m = th.surface_band_margin
-            out.append(RelationFact(key[0], (int(geom.ids[key[1]]), key[2], key[3]), None if code == UNDECIDED else True, v, m))
-    return out
+def _spot_stored(rel: str) -> Callable[[SceneGeom], list[RelationFact]]:
+    """The holding and undecided corner (or edge) instances, by (object id, surface, label)."""
+
+    def stored(geom: SceneGeom) -> list[RelationFact]:
+        m = geom.th.surface_band_margin
+        items = _corner_edge(geom)
+        out = []
+        for key in sorted((k for k in items if k[0] == rel), key=lambda k: (int(geom.ids[k[1]]), k[2], k[3])):
+            code, v = items[key]
+            if code in (TRUE, UNDECIDED):
+                out.append(RelationFact(rel, (int(geom.ids[key[1]]), key[2], key[3]),
+                                        None if code == UNDECIDED else True, v, m))
+        return out
+
+    return stored
+
+
+def _spot_cell(rel: str) -> Callable[[RelationTables, tuple[Any, ...]], Cell | None]:
+    """The stored instance; absent = False for an object standing on that surface when the surface has that
+    label, else not evaluated."""
+    key = "corners" if rel == "corner" else "edges"
+
+    def cell(t: RelationTables, args: tuple[Any, ...]) -> Cell | None:
+        f = t.stored(rel, args)
+        if f is not None:
+            return Cell(f.holds, float(f.value), f.margin)
+        a, sid, label = args
+        labels = t.surfaces.get(sid, {}).get(key, [])
+        if t.th is None or t.nodes[int(a)].attributes.get("surface") != sid or label not in labels:
+            return None
+        return Cell(False, 0.0, t.th.surface_band_margin)
+
+    return cell
+
+
+def _spot_domain(rel: str) -> Callable[[RelationTables], list[tuple[Any, ...]]]:
+    key = "corners" if rel == "corner" else "edges"
+    return lambda t: [(i, sid, lab) for i in t.ids for sid, e in sorted(t.surfaces.items()) for lab in e.get(key, [])]
 
 
 def _eval(rel: str):
@@ -133,15 +165,35 @@ def _free_eval(geom, surface_id: str, kind: str, *anchors) -> RelationFact:
     return RelationFact("free_space", (surface_id, kind, *anchors), False, 0.0, geom.th.free_min_area)
 
 
+def _free_cell(t: RelationTables, args: tuple[Any, ...]) -> Cell | None:
+    if t.th is None:
+        return None
+    sid, kind, *anchors = args
+    for r in t.regions(kind, tuple(anchors)):
+        if r.surface_id == sid:
+            return Cell(True, float(r.area), t.th.free_min_area)
+    return Cell(False, 0.0, t.th.free_min_area)
+
+
+def _free_instances(t: RelationTables) -> list[RelationFact]:
+    """One instance per stored region (regions of one kind and anchors differ by label and area)."""
+    if t.th is None:
+        return []
+    m = t.th.free_min_area
+    return [RelationFact("free_space", (r.surface_id, r.kind, *r.anchors), True, r.area, m) for r in t.graph.free_space]
+
+
 S = ("gravity", "surface")
-register(Relation("corner", "surface", "world", 3, "distance from A's footprint to the labelled corner (m)",
-                  "corner_reach, surface_band_margin",
-                  "A (or a free point) is within reach of a support surface's corner, named from the viewer (e.g. far-left)",
-                  sources=SURFACE_SOURCES, storage="sparse", needs=S, evaluate=_eval("corner")))
-register(Relation("edge", "surface", "world", 3, "inward distance from the labelled edge to A's footprint (m)",
-                  "edge_band, surface_band_margin",
-                  "A (or a free point) lies within a band along one edge of a support surface (e.g. the right edge)",
-                  sources=SURFACE_SOURCES, storage="sparse", needs=S, evaluate=_eval("edge")))
-register(Relation("free_space", "surface", "world", 2, "visible free area of the region (m^2)", "free_min_area, visibility_tolerance",
-                  "a visible point on a support surface not covered by any object footprint (left/right/front/behind of, between, corner, edge)",
-                  sources=SURFACE_SOURCES, storage="region", needs=S, evaluate=_free_eval))
+for _rel, _value, _margin, _definition in (
+        ("corner", "distance from A's footprint to the labelled corner (m)", "corner_reach, surface_band_margin",
+         "A (or a free point) is within reach of a support surface's corner, named from the viewer (e.g. far-left)"),
+        ("edge", "inward distance from the labelled edge to A's footprint (m)", "edge_band, surface_band_margin",
+         "A (or a free point) lies within a band along one edge of a support surface (e.g. the right edge)")):
+    register(Relation(_rel, "surface", "world", 3, _value, _margin, _definition, sources=SURFACE_SOURCES,
+                      storage="sparse", needs=S, evaluate=_eval(_rel), stored=_spot_stored(_rel),
+                      cell=_spot_cell(_rel), domain=_spot_domain(_rel)))
+register(Relation("free_space", "surface", "world", 2, "visible free area of the region (m^2)",
+                  "free_min_area, visibility_tolerance",
+                  "a visible point on a support surface not covered by any object footprint (left/right/front/behind "
+                  "of, between, corner, edge)", sources=SURFACE_SOURCES, storage="region", needs=S, variadic=True,
+                  evaluate=_free_eval, cell=_free_cell, instances=_free_instances))
