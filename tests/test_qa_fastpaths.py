@@ -76,7 +76,6 @@ def test_compiled_steps_agree_with_run_step(scenes):
     from itertools import product
 
     from refspatial_gen.qa.bench import default_config
-    from refspatial_gen.qa.compiled import compiled
     from refspatial_gen.qa.executor import Context, run_step, slot_candidates
 
     cfg = default_config()
@@ -85,9 +84,9 @@ def test_compiled_steps_agree_with_run_step(scenes):
         idx = SceneIndex(f, g)
         for fam in cfg.families:
             for t in fam.templates:
-                fns = compiled(t)
+                fns = t.program.fns
                 for st, fn in zip(t.steps, fns):
-                    if st.op not in ("relate", "between") or fn.__qualname__.startswith("_generic"):
+                    if st.op not in ("relate", "between") or st.impl.compile(st) is None:
                         continue
                     names = [n for n in t.slots if t.slots[n].type in ("relation", "object", "anchor")]
                     used = {r.value for r in st.args.values() if r.kind == "slot"} | {
@@ -117,7 +116,7 @@ def test_close_far_winner_matches_pairwise_rule(scenes, monkeypatch):
     pair at a time) gives the same winner, or rejects too, for every anchor and candidate set tried."""
     from itertools import combinations
 
-    from refspatial_gen.qa.executor import _winner
+    from refspatial_gen.qa.ops.common import winner as _winner
 
     outcomes = {"winner": 0, "reject": 0}
     for f, g in scenes:
@@ -161,12 +160,11 @@ def test_point_in_mask_matches_decoded_mask(scenes):
 
 def _degenerate_by_full_replay(t, env, ctx) -> list[int]:
     """degenerate_steps without its shortcuts: every droppable step is replayed, the whole program each time."""
-    from refspatial_gen.qa import ops
     from refspatial_gen.qa.executor import answer_key, replay
 
     full, bad = answer_key(env[t.steps[-1].name]), []
     for st in t.steps:
-        if st.op in ops.DROPPABLE:
+        if st.impl.droppable:
             try:
                 if replay(t, env, ctx, drop=st.index, reuse_prefix=False) == full:
                     bad.append(st.index)
@@ -177,8 +175,10 @@ def _degenerate_by_full_replay(t, env, ctx) -> list[int]:
 
 def test_replay_with_compiled_steps_matches_interpreter(scenes, monkeypatch):
     """The degeneracy check replays programs with the compiled steps; the interpreter gives the same verdicts."""
-    import refspatial_gen.qa.compiled as compiled_mod
+    import dataclasses
+
     from refspatial_gen.qa.bench import default_config
+    from refspatial_gen.qa.ops.common import generic
     from refspatial_gen.qa.executor import Context, Search, degenerate_steps
 
     cfg = default_config()
@@ -192,9 +192,9 @@ def test_replay_with_compiled_steps_matches_interpreter(scenes, monkeypatch):
                 ctx = Context(idx, np.random.default_rng(1))
                 for env in list(Search(t, ctx, 300).instances())[:15]:
                     fast = degenerate_steps(t, env, ctx)
-                    with monkeypatch.context() as mp:
-                        mp.setattr(compiled_mod, "compiled", lambda t: [compiled_mod._generic(st) for st in t.steps])
-                        slow = degenerate_steps(t, env, ctx)
+                    interpreted = dataclasses.replace(t, program=dataclasses.replace(
+                        t.program, fns=tuple(generic(st) for st in t.steps)))
+                    slow = degenerate_steps(interpreted, env, ctx)
                     assert fast == slow, (t.name, env)
                     assert fast == _degenerate_by_full_replay(t, env, ctx), (t.name, env)  # the skipped replays
                     checked += 1
@@ -223,7 +223,6 @@ def test_compiled_steps_agree_on_search_instances(scenes):
     """Every compiled step (relate, between, filter, locate, compare) returns what run_step returns or rejects
     with, on the bindings the search really reaches, fed the previous step's value and other inputs."""
     from refspatial_gen.qa.bench import default_config
-    from refspatial_gen.qa.compiled import compiled
     from refspatial_gen.qa.executor import Context, Search, run_step
 
     cfg = default_config()
@@ -235,10 +234,10 @@ def test_compiled_steps_agree_on_search_instances(scenes):
             for t in fam.templates:
                 if any(st.op == "camera_turn" for st in t.steps):
                     continue
-                fns = compiled(t)
+                fns = t.program.fns
                 for env in list(Search(t, Context(idx, np.random.default_rng(3)), 400).instances())[:10]:
                     for k, (st, fn) in enumerate(zip(t.steps, fns)):
-                        if fn.__qualname__.startswith("_generic"):
+                        if st.impl.compile(st) is None:
                             continue
                         own = env[t.steps[k - 1].name] if k else None
                         for prev in (own, None, idx.all, *singles, frozenset()):
@@ -292,10 +291,9 @@ def test_between_shortcut_only_skips_searches_that_cannot_succeed(scenes):
     it: largest_between_row is the largest true row, and with it below the bound the search finds nothing."""
     from refspatial_gen.qa.bench import default_config
     from refspatial_gen.qa.executor import Context, Search
-    from refspatial_gen.qa.generate import _needs
 
     cfg = default_config()
-    templates = [t for fam in cfg.families for t in fam.templates if _needs(t).between]
+    templates = [t for fam in cfg.families for t in fam.templates if t.program.needs.between]
     skipped = searched = 0
     small = toy_scenes((104, 105, 106), 5)  # five-object scenes: some have at most one object between any two
     for f, g in [*scenes, *small]:
@@ -303,7 +301,7 @@ def test_between_shortcut_only_skips_searches_that_cannot_succeed(scenes):
         rows = [idx.between_entry(b, c)[0] for b, c in permutations(idx.ids, 2)]
         assert idx.largest_between_row == max(len(r) for r in rows)
         for t in templates:
-            if idx.largest_between_row < _needs(t).between:
+            if idx.largest_between_row < t.program.needs.between:
                 assert not list(Search(t, Context(idx, np.random.default_rng(0)), 10 ** 6).instances()), t.name
                 skipped += 1
             else:

@@ -257,7 +257,7 @@ def test_key_steps_always_name_their_object(scenes, cfg):
     only name a graph phrase, a drawn mark, the free space, or (final position only) the answer target: the
     generator rejects anything else, as `verify` would."""
     from refspatial_gen.core.model import KeyStep, SceneGraph
-    from refspatial_gen.qa.generate import _check_key_phrases
+    from refspatial_gen.qa.keysteps import check_key_phrases as _check_key_phrases
 
     emitted = 0
     for k, (f, g) in enumerate(scenes):

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from refspatial_gen.qa.bench import default_config
-from refspatial_gen.qa.executor import Context, Search, answer_chain
+from refspatial_gen.qa.executor import Context, Search
 from refspatial_gen.qa.index import SceneIndex
 from refspatial_gen.qa.sample_rng import SampleRng
 from refspatial_gen.qa.templates import load_template_file
@@ -25,10 +25,10 @@ def _templates():
 
 def test_answer_chain_flags_follow_the_set_chain():
     ts = _templates()
-    assert answer_chain(ts["identify/two_conditions"]) == [True, True, True, False]
-    assert answer_chain(ts["locate/relation_closest"]) == [True, True, False, False]  # superlative feeds locate
-    assert answer_chain(ts["locate/by_phrase"]) == [False]
-    assert not any(answer_chain(ts["choice/yes_no_relation"]))  # a yes/no answer is not an object
+    assert ts["identify/two_conditions"].program.answer_chain == (True, True, True, False)
+    assert ts["locate/relation_closest"].program.answer_chain == (True, True, False, False)  # superlative feeds locate
+    assert ts["locate/by_phrase"].program.answer_chain == (False)
+    assert not any(ts["choice/yes_no_relation"].program.answer_chain)  # a yes/no answer is not an object
 
 
 def test_answer_chain_stops_at_a_step_with_its_own_input(tmp_path):
@@ -44,7 +44,7 @@ templates:
 """)
     t = load_template_file(tmp_path / "own_input.yaml")[0]
     # the relate step reads `all`, so the filter's output does not bound the answer
-    assert answer_chain(t) == [False, True, False]
+    assert t.program.answer_chain == (False, True, False)
 
 
 @pytest.fixture(scope="module")

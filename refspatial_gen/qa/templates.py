@@ -1,30 +1,27 @@
 """Compile template files (YAML) into typed programs, once, with every error as `file:line: message`.
 
 A template file is a mapping with a `templates:` list. Each template has typed `slots`, a `program` of
-steps (qa/ops.py), and `text` variants (qa/text.py grammar). See docs/templates.md for the language.
+steps (qa/ops/, one module per op), and `text` variants (qa/text.py grammar). See docs/templates.md for the language.
 Compilation checks everything that can be checked without a scene: op names and arguments, slot and
 step references and their types, relation ids, the text placeholders, and the step count (1 to 5).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from refspatial_gen.core.errors import RecipeError, RecipeErrors
-from refspatial_gen.qa import lexicon, ops
+from refspatial_gen.graph.relations import template_relations
+from refspatial_gen.qa import lexicon
+from refspatial_gen.qa.ops import OPS, allowed_relations
+from refspatial_gen.qa.ops.base import ANSWER_TYPES, BOOL, FREE_KINDS, MARKS, OBJECT, REGION_KINDS, SET, SLOT_TYPES, TURN_AXES, Arg, Op
+from refspatial_gen.qa.planner import plan_program
+from refspatial_gen.qa.program import Ref, SlotSpec, Step, Template
 from refspatial_gen.qa.text import Seq, TextSyntaxError, parse, placeholders
 from refspatial_gen.yamlpos import line_of, load_yaml
 
-# The 31 canonical relation ids (relations.md) plus the extra ones the graph records.
-RELATION_IDS = (
-    "left", "right", "close", "far", "depth", "above_world", "below_world", "above_image", "below_image", "tall",
-    "short", "between", "rotation_horizontal", "rotation_vertical", "free_space", "corner", "edge", "angle",
-    "distance", "front", "behind", "big", "small", "inside", "outside", "facing", "facing_away", "wide", "thin",
-    "touching", "far_from",
-)
-EXTRA_RELATIONS = ("next_to", "on")
+__all__ = ["MAX_STEPS", "Ref", "SlotSpec", "Step", "Template", "compile_templates", "load_template_file"]
 MAX_STEPS = 5
 TEMPLATE_KEYS = ("name", "weight", "slots", "program", "text", "instruction", "description")
 SLOT_KEYS = ("type", "choices", "category", "has_front", "min", "max", "kinds", "phrases", "description")
@@ -35,59 +32,6 @@ SLOT_FORMS = {  # placeholder suffixes each slot type renders
     "spot": ("", "surface", "label"),
 }
 BUILTIN_PLACEHOLDERS = ("choices", "instruction")
-
-
-@dataclass(frozen=True)
-class Ref:
-    """An argument: a slot, an earlier step's output, a literal, or the previous step (`None` value)."""
-
-    kind: str  # "slot" | "step" | "literal" | "prev" | "all" | "list"
-    value: Any = None
-
-
-@dataclass
-class SlotSpec:
-    name: str
-    type: str
-    line: int | None
-    choices: tuple | None = None
-    category: tuple | None = None
-    has_front: bool | None = None
-    min: int = 1
-    max: int = 3
-    kinds: tuple | None = None
-    phrases: dict[str, dict[str, Seq]] = field(default_factory=dict)
-
-
-@dataclass
-class Step:
-    index: int
-    op: str
-    name: str
-    args: dict[str, Ref]
-    out: str
-    line: int | None
-    weight: int
-    binds: tuple[str, ...] = ()  # slots first needed at this step (bound by the search just before it runs)
-    min_out: int = 1  # a set this step gives must hold at least this many objects (later steps narrow it)
-    exact_one: bool = False  # the set this step gives is the described object: exactly one
-
-
-@dataclass
-class Template:
-    name: str
-    file: str
-    line: int | None
-    weight: float
-    slots: dict[str, SlotSpec]
-    steps: list[Step]
-    texts: list[Seq]
-    instructions: list[Seq] | None
-    n_steps: int
-    answer_type: str
-    relations: tuple[str, ...]  # literal relation ids (slot relations are added per instance)
-    family: str = ""
-    unbound: tuple[str, ...] = ()  # slots only used in text (bound before rendering)
 
 
 class _Ctx:
@@ -113,7 +57,7 @@ def compile_templates(data: Any, file: str, lines: dict, errors: list[RecipeErro
                       relation_ids: tuple[str, ...] | None = None) -> list[Template]:
     """Compile a parsed template document; problems go to `errors` (nothing raised)."""
     ctx = _Ctx(file, lines, errors)
-    known_rel = tuple(relation_ids or RELATION_IDS) + EXTRA_RELATIONS
+    known_rel = tuple(relation_ids) if relation_ids else template_relations()
     if not isinstance(data, dict):
         ctx.err((), "a template file must be a mapping with a 'templates:' list")
         return []
@@ -162,10 +106,10 @@ def _compile_one(item: Any, path: tuple, ctx: _Ctx, known_rel: tuple[str, ...]) 
     if not steps:
         return None
     answer_type = steps[-1].out
-    if answer_type not in ops.ANSWER_TYPES:
+    if answer_type not in ANSWER_TYPES:
         ctx.err(path + ("program", len(steps) - 1), f"the program must end in a step giving an answer "
-                f"({', '.join(ops.ANSWER_TYPES)}), but {steps[-1].op!r} gives a {answer_type}")
-    n_steps = ops.count_steps([(s.op, s.args) for s in steps])
+                f"({', '.join(ANSWER_TYPES)}), but {steps[-1].op!r} gives a {answer_type}")
+    n_steps = max(1, sum(s.weight for s in steps))  # a plain reference is one step
     if n_steps > MAX_STEPS:
         ctx.err(path + ("program",), f"step count {n_steps} out of range: questions have 1 to {MAX_STEPS} steps "
                 f"(anchors and directional phrases, formats.md)")
@@ -215,10 +159,11 @@ def _compile_one(item: Any, path: tuple, ctx: _Ctx, known_rel: tuple[str, ...]) 
                            if k == "relation" and r.kind == "literal"})
     _assign_binds(steps, slots)
     _assign_bounds(steps)
-    return Template(name=name, file=ctx.file, line=line_of(ctx.lines, path), weight=float(weight), slots=slots,
-                    steps=steps, texts=texts, instructions=instr, n_steps=n_steps, answer_type=answer_type,
-                    relations=tuple(literal_rels),
-                    unbound=tuple(sorted(n for n in text_slots if n not in used_in_program)))
+    t = Template(name=name, file=ctx.file, line=line_of(ctx.lines, path), weight=float(weight), slots=slots,
+                 steps=steps, texts=texts, instructions=instr, n_steps=n_steps, answer_type=answer_type,
+                 relations=tuple(literal_rels), unbound=tuple(sorted(n for n in text_slots if n not in used_in_program)))
+    plan_program(t)
+    return t
 
 
 def _check_forms(s: SlotSpec, form: str, ctx: _Ctx, path: tuple) -> None:
@@ -272,8 +217,8 @@ def _compile_slots(v: Any, path: tuple, ctx: _Ctx, known_rel: tuple[str, ...]) -
             if k not in SLOT_KEYS:
                 ctx.err(p + (k,), f"unknown key {k!r} in slot {name!r} (known: {', '.join(SLOT_KEYS)})")
         ty = spec.get("type")
-        if ty not in ops.SLOT_TYPES:
-            ctx.err(p + ("type",), f"slot {name!r}: unknown slot type {ty!r} (known: {', '.join(ops.SLOT_TYPES)})")
+        if ty not in SLOT_TYPES:
+            ctx.err(p + ("type",), f"slot {name!r}: unknown slot type {ty!r} (known: {', '.join(SLOT_TYPES)})")
             continue
         s = SlotSpec(name, ty, line_of(ctx.lines, p))
         ch = spec.get("choices")
@@ -288,7 +233,7 @@ def _compile_slots(v: Any, path: tuple, ctx: _Ctx, known_rel: tuple[str, ...]) -
                         if c not in known_rel:
                             ctx.err(p + ("choices", j), f"unknown relation {c!r} (known: {', '.join(known_rel)})")
                 elif ty == "direction":
-                    allowed = ops.FREE_KINDS + tuple(x for pair in ops.TURN_AXES.values() for x in pair)
+                    allowed = FREE_KINDS + tuple(x for pair in TURN_AXES.values() for x in pair)
                     for j, c in enumerate(ch):
                         if c not in allowed:
                             ctx.err(p + ("choices", j), f"unknown direction {c!r} (known: {', '.join(allowed)})")
@@ -323,8 +268,8 @@ def _compile_slots(v: Any, path: tuple, ctx: _Ctx, known_rel: tuple[str, ...]) -
         if kinds is not None:
             if ty not in ("region", "spot"):
                 ctx.err(p + ("kinds",), f"slot {name!r}: kinds apply to region and spot slots only")
-            elif not isinstance(kinds, list) or not all(k in ops.REGION_KINDS for k in kinds) or not kinds:
-                ctx.err(p + ("kinds",), f"slot {name!r}: kinds must be a list of {', '.join(ops.REGION_KINDS)}")
+            elif not isinstance(kinds, list) or not all(k in REGION_KINDS for k in kinds) or not kinds:
+                ctx.err(p + ("kinds",), f"slot {name!r}: kinds must be a list of {', '.join(REGION_KINDS)}")
             else:
                 s.kinds = tuple(kinds)
         phr = spec.get("phrases")
@@ -379,10 +324,10 @@ def _compile_program(v: Any, path: tuple, ctx: _Ctx, slots: dict[str, SlotSpec],
             ctx.err(p, f"a step must be a mapping with 'op:', got {type(raw).__name__}")
             return []
         op = raw.get("op")
-        if op not in ops.OPS:
-            ctx.err(p + ("op",), f"unknown op {op!r} (known: {', '.join(sorted(ops.OPS))})")
+        if not isinstance(op, str) or op not in OPS:
+            ctx.err(p + ("op",), f"unknown op {op!r} (known: {', '.join(sorted(OPS.names()))})")
             return []
-        spec = ops.OPS[op]
+        spec = OPS[op]
         sname = raw.get("as", f"step{i + 1}")
         if not isinstance(sname, str) or not sname.isidentifier() or sname in slots or sname in names:
             ctx.err(p + ("as",), f"step name {sname!r} must be a new identifier (not a slot or earlier step)")
@@ -401,22 +346,24 @@ def _compile_program(v: Any, path: tuple, ctx: _Ctx, slots: dict[str, SlotSpec],
                     ctx.err(p, f"op {op!r} needs argument {k!r}")
                     ok = False
                 continue
-            r = _resolve_arg(raw[k], a.kind, spec, p + (k,), ctx, slots, names, known_rel, rel_uses)
+            r = _resolve_arg(raw[k], a, spec, p + (k,), ctx, slots, names, known_rel, rel_uses)
             if r is None:
                 ok = False
             else:
                 args[k] = r
         if not ok:
             return []
-        if not _check_op_shape(op, args, p, ctx, steps):
+        problem = spec.check(args, steps)
+        if problem is not None:
+            ctx.err(p + problem[0], problem[1])
             return []
-        st = Step(i, op, sname, args, spec.out, line_of(ctx.lines, p), ops.step_weight(op, args))
+        st = Step(i, op, sname, args, spec.out, line_of(ctx.lines, p), spec.weight(args.keys()), impl=spec)
         steps.append(st)
         names[sname] = st
-    for sname, allowed in rel_uses.items():
+    for sname, (allowed, order) in rel_uses.items():
         s = slots[sname]
-        if s.choices is None:
-            s.choices = tuple(r for r in allowed if r in known_rel)
+        if s.choices is None:  # in the op's order (a set's order would depend on the process's hash seed)
+            s.choices = tuple(r for r in order if r in allowed and r in known_rel)
         else:
             for r in s.choices:
                 if r not in allowed and r in known_rel:
@@ -424,50 +371,9 @@ def _compile_program(v: Any, path: tuple, ctx: _Ctx, slots: dict[str, SlotSpec],
     return steps
 
 
-def _check_op_shape(op: str, args: dict[str, Ref], p: tuple, ctx: _Ctx, prior: list[Step]) -> bool:
-    if op == "free_space":
-        n = sum(k in args for k in ("anchor", "anchors", "region"))
-        if n != 1:
-            ctx.err(p, "free_space needs exactly one of anchor, anchors (two objects) or region")
-            return False
-        if "region" not in args and "anchors" not in args and "direction" not in args:
-            ctx.err(p, "free_space with an anchor needs a direction")
-            return False
-    if op in ("between",) or (op == "free_space" and "anchors" in args):
-        r = args.get("anchors")
-        if r is not None and len(r.value) != 2:
-            ctx.err(p + ("anchors",), "anchors must list exactly two objects")
-            return False
-    if op == "choose":
-        r = args["options"]
-        if r.kind == "list" and len(r.value) < 2:
-            ctx.err(p + ("options",), "choose needs at least two options")
-            return False
-    if op in ("superlative", "compare", "choose"):
-        rel = args.get("relation")
-        if rel is not None and rel.kind == "literal" and rel.value in ops.ANCHORED and "anchor" not in args:
-            ctx.err(p + ("relation",), f"relation {rel.value!r} compares distances to an anchor: add anchor:")
-            return False
-    if op == "measure":
-        q = args["quantity"].value
-        n = ops.QUANTITIES[q][0]
-        if "of" not in args and not (prior and prior[-1].out in (ops.OBJECT, ops.SET)):
-            ctx.err(p, "measure needs of: (an object)")
-            return False
-        if n == 2 and "to" not in args:
-            ctx.err(p, f"measure {q} needs to: (a second object)")
-            return False
-        if n == 1 and "to" in args:
-            ctx.err(p + ("to",), f"measure {q} takes one object")
-            return False
-    if op in ("locate",) and "of" not in args and not (prior and prior[-1].out in (ops.SET, ops.OBJECT)):
-        ctx.err(p, "locate needs of: (an object) or a preceding step that selects objects")
-        return False
-    return True
-
-
-def _resolve_arg(v: Any, kind: str, spec: ops.OpSpec, p: tuple, ctx: _Ctx, slots: dict[str, SlotSpec],
-                 names: dict[str, Step], known_rel, rel_uses: dict[str, set[str]]) -> Ref | None:
+def _resolve_arg(v: Any, arg: Arg, spec: Op, p: tuple, ctx: _Ctx, slots: dict[str, SlotSpec],
+                 names: dict[str, Step], known_rel, rel_uses: dict[str, tuple[set[str], tuple[str, ...]]]) -> Ref | None:
+    kind = arg.kind
     def slot_or_step(x: Any, want_slot: tuple[str, ...], want_step: tuple[str, ...], what: str) -> Ref | None:
         if not isinstance(x, str):
             ctx.err(p, f"{what} must be a slot or step name, got {type(x).__name__} {x!r}")
@@ -489,18 +395,18 @@ def _resolve_arg(v: Any, kind: str, spec: ops.OpSpec, p: tuple, ctx: _Ctx, slots
     if kind == "set":
         if v == "all":
             return Ref("all")
-        return slot_or_step(v, (), (ops.SET,), "a set of objects")
+        return slot_or_step(v, (), (SET,), "a set of objects")
     if kind == "object":  # a step giving a set is accepted: it must hold exactly one object at run time
-        return slot_or_step(v, ("object", "anchor"), (ops.OBJECT, ops.SET), "an object")
+        return slot_or_step(v, ("object", "anchor"), (OBJECT, SET), "an object")
     if kind == "objects" or kind == "options":
-        if kind == "options" and isinstance(v, str) and v in names and names[v].out == ops.MARKS:
+        if kind == "options" and isinstance(v, str) and v in names and names[v].out == MARKS:
             return Ref("step", v)
         if not isinstance(v, list):
             ctx.err(p, f"{spec.name}.{p[-1]} must be a list of objects")
             return None
         refs = []
         for j, x in enumerate(v):
-            r = slot_or_step(x, ("object", "anchor"), (ops.OBJECT,), "an object")
+            r = slot_or_step(x, ("object", "anchor"), (OBJECT,), "an object")
             if r is None:
                 return None
             refs.append(r)
@@ -510,14 +416,16 @@ def _resolve_arg(v: Any, kind: str, spec: ops.OpSpec, p: tuple, ctx: _Ctx, slots
             if slots[v].type != "relation":
                 ctx.err(p, f"{v!r} is a {slots[v].type} slot; {spec.name}.relation needs a relation")
                 return None
-            allowed = set(spec.relations)
-            rel_uses[v] = rel_uses.get(v, set(allowed)) & allowed if v in rel_uses else allowed
+            order = allowed_relations(spec)
+            seen, first = rel_uses.get(v, (set(order), order))
+            rel_uses[v] = (seen & set(order), first)
             return Ref("slot", v)
         if not isinstance(v, str) or v not in known_rel:
             ctx.err(p, f"unknown relation {v!r} (known: {', '.join(known_rel)})")
             return None
-        if v not in spec.relations:
-            ctx.err(p, f"relation {v!r} cannot be used with {spec.name} (allowed: {', '.join(spec.relations)})")
+        allowed_rel = allowed_relations(spec)
+        if v not in allowed_rel:
+            ctx.err(p, f"relation {v!r} cannot be used with {spec.name} (allowed: {', '.join(allowed_rel)})")
             return None
         return Ref("literal", v)
     if kind in ("direction", "surface", "region", "spot", "number", "category", "color"):
@@ -526,7 +434,7 @@ def _resolve_arg(v: Any, kind: str, spec: ops.OpSpec, p: tuple, ctx: _Ctx, slots
                 ctx.err(p, f"{v!r} is a {slots[v].type} slot; {spec.name}.{p[-1]} needs a {kind}")
                 return None
             return Ref("slot", v)
-        if kind == "direction" and isinstance(v, str) and v in ops.FREE_KINDS:
+        if kind == "direction" and isinstance(v, str) and v in FREE_KINDS:
             return Ref("literal", v)
         if kind == "number" and isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 8:
             return Ref("literal", v)
@@ -541,16 +449,14 @@ def _resolve_arg(v: Any, kind: str, spec: ops.OpSpec, p: tuple, ctx: _Ctx, slots
             return None
         refs = []
         for x in v:
-            r = slot_or_step(x, (), (ops.BOOL,), "a yes/no step")
+            r = slot_or_step(x, (), (BOOL,), "a yes/no step")
             if r is None:
                 return None
             refs.append(r)
         return Ref("list", tuple(refs))
-    choices = {"quantity": tuple(ops.QUANTITIES), "style": ("box", "point"), "axis": tuple(ops.TURN_AXES),
-               "mode": ("most", "which")}
-    if kind in choices:
-        if v not in choices[kind]:
-            ctx.err(p, f"{spec.name}.{p[-1]} must be one of {', '.join(choices[kind])}, got {v!r}")
+    if arg.choices:
+        if v not in arg.choices:
+            ctx.err(p, f"{spec.name}.{p[-1]} must be one of {', '.join(arg.choices)}, got {v!r}")
             return None
         return Ref("literal", v)
     if kind == "int":
@@ -573,31 +479,27 @@ def _assign_binds(steps: list[Step], slots: dict[str, SlotSpec]) -> None:
         st.binds = tuple(b)
 
 
-NARROWING = ("relate", "between", "at")
-
-
 def _assign_bounds(steps: list[Step]) -> None:
     """Early pruning bounds: every later narrowing step must remove at least one object (else it is
-    degenerate), a superlative or ordinal needs two candidates, and the set a single-object consumer reads
-    must hold exactly one object."""
+    degenerate), a step picking one object of its input needs two candidates, and the set a single-object
+    consumer reads must hold exactly one object."""
     for i, st in enumerate(steps):
-        if st.out != ops.SET:
+        if st.out != SET:
             continue
         need = 1
         j = i + 1
-        while j < len(steps) and steps[j].args.get("in") is None and steps[j].op in NARROWING:
+        while j < len(steps) and steps[j].args.get("in") is None and steps[j].impl.narrowing:
             need += 1
             j += 1
         nxt = steps[j] if j < len(steps) else None
-        if nxt is not None and nxt.op in ("superlative", "ordinal") and nxt.args.get("in") is None:
+        if nxt is not None and nxt.impl.needs_two and nxt.args.get("in") is None:
             need += 1
         st.min_out = need
-        if j == i + 1 and nxt is not None and nxt.op in ("locate", "measure") and nxt.args.get("of") is None:
+        if j == i + 1 and nxt is not None and nxt.impl.implicit_of and nxt.args.get("of") is None:
             st.exact_one = True
         for later in steps[i + 1:]:
             for r in later.args.values():
                 rs = r.value if r.kind == "list" else (r,)
                 for x in rs:
-                    if isinstance(x, Ref) and x.kind == "step" and x.value == st.name and later.op in (
-                            "compare", "measure", "locate", "choose"):
+                    if isinstance(x, Ref) and x.kind == "step" and x.value == st.name and later.impl.reads_single:
                         st.exact_one = True

@@ -16,307 +16,31 @@ from typing import Any
 
 import numpy as np
 
-from refspatial_gen.core.geometry import box_distance
 from refspatial_gen.core.mask import denormalise_point
 from refspatial_gen.core.model import Frame, QAPair, Sample, SceneGraph
+from refspatial_gen.qa.ops import OPS
+from refspatial_gen.qa.verify_world import ANGLE_TOL, LENGTH_ABS_TOL, LENGTH_REL_TOL, Fail, Run, Undecided, World, _size
 
 LETTERS = "ABCDEFGH"
-LENGTH_ABS_TOL = 0.01  # m: recomputed lengths (sampled box distances) may differ by this ...
-LENGTH_REL_TOL = 0.03  # ... or by this share
-ANGLE_TOL = math.radians(1.0)
 KEY_TOL = 1.5e-3  # key-step values are rounded to 3 decimals
-ORDERED = {"left", "right", "front", "behind", "above_world", "below_world", "above_image", "below_image", "tall",
-           "short", "big", "small", "wide", "thin"}
-ANCHORED = {"close", "far"}
-# the formats.md step rule, restated here on purpose (not imported from the generator)
-_STEP_WEIGHTS = {"relate": 2, "at": 2, "is_at": 2, "between": 3, "camera_turn": 1}
 
 
-class _Undecided(Exception):
-    pass
+def _steps_of(program: list[dict[str, Any]]) -> int:
+    """The step count the record's own program gives (each op's formats.md rule over the stored arguments)."""
+    from refspatial_gen.qa.ops import OPS
 
-
-class _Fail(Exception):
-    pass
-
-
-def _one(x: Any) -> int:
-    if isinstance(x, (frozenset, set, list)):
-        if len(x) != 1:
-            raise _Fail(f"the described object is not unique: {sorted(x)}")
-        return int(next(iter(x)))
-    return int(x)
-
-
-def _steps_of(program: list[dict]) -> int:
     n = 0
     for st in program:
         op, a = st.get("op"), st.get("args") or {}
-        if op in _STEP_WEIGHTS:
-            n += _STEP_WEIGHTS[op]
-        elif op == "superlative":
-            n += 2 if a.get("anchor") is not None else 0
-        elif op == "free_space":
-            n += 3 if a.get("anchors") is not None else (1 if a.get("region") is not None else 2)
-        elif op == "compare":
-            n += 3 if a.get("anchor") is not None else 2
-        elif op == "measure":
-            n += 1 if a.get("to") is not None else 0
-        elif op == "choose":
-            n += 3 if a.get("anchor") is not None else 1
+        if op in OPS:
+            n += OPS[op].weight({k for k, v in a.items() if v is not None})
     return max(1, n)
-
-
-class _World:
-    """Raw geometry of one frame, evaluated on demand through the relation registry."""
-
-    def __init__(self, frame: Frame, graph: SceneGraph) -> None:
-        from refspatial_gen.graph import geometry
-
-        self.frame, self.graph = frame, graph
-        cfg: dict[str, Any] = {}
-        if graph.meta.get("scale"):
-            cfg["scale"] = graph.meta["scale"]
-        if graph.meta.get("thresholds"):
-            cfg["thresholds"] = graph.meta["thresholds"]
-        self.geom = geometry(frame, cfg)
-        self.nodes = {n.object_id: n for n in graph.nodes}
-        self.objects = {o.id: o for o in frame.objects}
-        self.used: list[str] = []
-        self._masks: dict[int, np.ndarray] = {}
-
-    def holds(self, rel: str, *args) -> bool:
-        from refspatial_gen.graph.relations import evaluate
-
-        f = evaluate(self.geom, rel, *args)
-        if f.holds is None:
-            raise _Undecided(f"{rel}{tuple(args)} is inside its margin (value {f.value:.4f}, margin {f.margin:.4f})")
-        return bool(f.holds)
-
-    def mask(self, oid: int) -> np.ndarray:
-        m = self._masks.get(oid)
-        if m is None:
-            o = self.objects[oid]
-            m = o.mask.decode() if o.mask is not None else np.zeros((self.frame.camera.height, self.frame.camera.width), bool)
-            self._masks[oid] = m
-        return m
-
-    def on_surface(self, oid: int, sid: str) -> bool:
-        n = self.nodes[oid]
-        return n.attributes.get("surface") == sid or n.support == sid
-
-
-# ------------------------------------------------------------------------------------------ numbers
-def _size(box) -> tuple[float, float, float]:
-    fp = box.footprint()
-    s = np.linalg.norm(np.roll(fp, -1, axis=0) - fp, axis=1)
-    return float(max(s[0], s[1])), float(min(s[0], s[1])), float(box.height)
-
-
-def _horizontal_front(o) -> np.ndarray | None:
-    f = o.front_world
-    if f is None:
-        return None
-    h = np.asarray(f[:2], float)
-    n = np.linalg.norm(h)
-    return None if n < 1e-9 else h / n
-
-
-def recompute_quantity(world: _World, q: str, a: int, b: int | None) -> float:
-    """A measured quantity recomputed from the stored boxes, masks, depth and camera (SI units)."""
-    fr = world.frame
-    oa = world.objects[a]
-    if q == "distance":
-        return box_distance(oa.box, world.objects[b].box, n=9)
-    if q == "depth":
-        d = fr.depth[world.mask(a)]
-        d = d[d > 0]
-        if len(d) == 0:
-            raise _Fail("depth: no valid depth pixel in the object's mask")
-        return float(np.median(d))
-    if q == "height":
-        return _size(oa.box)[2]
-    if q == "width":
-        return _size(oa.box)[0]
-    if q == "angle":
-        h1, h2 = _horizontal_front(oa), _horizontal_front(world.objects[b])
-        if h1 is None or h2 is None:
-            raise _Fail("angle: an object has no front direction")
-        return float(np.arccos(np.clip(h1 @ h2, -1, 1)))
-    cam = fr.camera
-    pc = cam.world_to_cam(oa.box.center)[0]
-    if q == "rotation_horizontal":
-        return float(math.atan2(pc[0], pc[2]))
-    if q == "rotation_vertical":
-        fwd = cam.world_from_cam[:3, 2].copy()
-        fwd[2] = 0.0
-        fwd /= np.linalg.norm(fwd)
-        d = oa.box.center - cam.position
-        return float(math.atan2(d[2], d @ fwd))
-    raise _Fail(f"unknown quantity {q!r}")
 
 
 def _close(a: float, b: float, q: str) -> bool:
     if q in ("angle", "rotation_horizontal", "rotation_vertical"):
         return abs(a - b) <= ANGLE_TOL
     return abs(a - b) <= max(LENGTH_ABS_TOL, LENGTH_REL_TOL * max(abs(a), abs(b)))
-
-
-def camera_turn(f1: Frame, f2: Frame, axis: str) -> float:
-    a1, a2 = f1.camera.world_from_cam[:3, 2], f2.camera.world_from_cam[:3, 2]
-    if axis == "horizontal":
-        d = math.atan2(a2[1], a2[0]) - math.atan2(a1[1], a1[0])
-        return (d + math.pi) % (2 * math.pi) - math.pi
-    return math.asin(a2[2] / np.linalg.norm(a2)) - math.asin(a1[2] / np.linalg.norm(a1))
-
-
-# ------------------------------------------------------------------------------------------ program
-class _Run:
-    """Re-evaluates a stored program on the raw geometry; `drop` skips one step (degeneracy test)."""
-
-    def __init__(self, world: _World, frames: dict[str, Frame], qa: QAPair) -> None:
-        self.w, self.frames, self.qa = world, frames, qa
-
-    def ref(self, v: Any, env: dict, prev: Any) -> Any:
-        if isinstance(v, dict):
-            if "step" in v:
-                return prev if v["step"] in (None, "prev") else env[v["step"]]
-            if "object" in v:
-                return int(v["object"])
-            if "spot" in v:
-                return tuple(v["spot"])
-            if "region" in v:
-                return v["region"]
-            raise _Fail(f"unreadable argument {v!r}")
-        if isinstance(v, list):
-            return [self.ref(x, env, prev) for x in v]
-        if v == "all":
-            return frozenset(self.w.nodes)
-        return v
-
-    def run(self, drop: int | None = None) -> tuple[Any, dict]:
-        env: dict[str, Any] = {}
-        prev = None
-        for k, st in enumerate(self.qa.program):
-            op, raw = st["op"], st.get("args") or {}
-            a = {key: self.ref(v, env, prev) for key, v in raw.items()}
-            if k == drop:
-                if op in ("relate", "between", "at", "superlative", "ordinal"):
-                    val = frozenset(a.get("in", prev))
-                elif op in ("compare", "is_at"):
-                    val = None
-                else:
-                    raise _Fail("not droppable")
-            else:
-                val = self.step(op, a, prev, env, st)
-            env[st["as"]] = val
-            prev = val
-        return prev, env
-
-    def step(self, op: str, a: dict, prev: Any, env: dict, st: dict) -> Any:
-        w = self.w
-        s = frozenset(a["in"]) if isinstance(a.get("in"), (frozenset, list, set)) else None
-        if op == "filter":
-            s = s if s is not None else frozenset(w.nodes)
-            if "category" in a:
-                s = frozenset(i for i in s if w.nodes[i].category == a["category"])
-            if "color" in a:
-                s = frozenset(i for i in s if w.nodes[i].attributes.get("color") == a["color"])
-            if "on" in a:
-                s = frozenset(i for i in s if w.on_surface(i, a["on"]))
-            return s
-        if op == "relate":
-            return frozenset(x for x in s if x != a["anchor"] and w.holds(a["relation"], x, a["anchor"]))
-        if op == "at":
-            kind, sid, label = a["spot"]
-            return frozenset(x for x in s if w.holds(kind, x, sid, label))
-        if op == "is_at":
-            kind, sid, label = a["spot"]
-            return w.holds(kind, a["a"], sid, label)
-        if op == "between":
-            b, c = a["anchors"]
-            return frozenset(x for x in s if x not in (b, c) and w.holds("between", x, b, c))
-        if op == "superlative":
-            anchor = a.get("anchor")
-            cands = sorted(x for x in s if x != anchor)
-            return self._most(cands, a["relation"], anchor)
-        if op == "ordinal":
-            cands = sorted(s)
-            n = len(cands)
-            wins = {x: sum(1 for y in cands if y != x and w.holds(a["relation"], x, y)) for x in cands}
-            hit = [x for x in cands if wins[x] == n - int(a["rank"])]
-            if len(hit) != 1:
-                raise _Fail(f"ordinal: no unique rank {a['rank']} among {cands}")
-            return hit[0]
-        if op == "locate":
-            x = a.get("of", prev)
-            if isinstance(x, (frozenset, set, list)):
-                if len(x) != 1:
-                    raise _Fail(f"the described object is not unique: {sorted(x)}")
-                x = next(iter(x))
-            return ("object", int(x))
-        if op == "free_space":
-            return ("free", st.get("out", {}).get("region") or a.get("region"))
-        if op == "compare":
-            rel, x, y = a["relation"], _one(a["a"]), _one(a["b"])
-            if rel in ANCHORED:
-                return w.holds(rel, x, y, a["anchor"])
-            return w.holds(rel, x, y)
-        if op == "all":
-            vals = [v for v in a["of"] if v is not None]
-            if not vals:
-                raise _Fail("all: nothing left")
-            return all(vals)
-        if op == "measure":
-            x = a.get("of", prev)
-            if isinstance(x, (frozenset, set, list)):
-                if len(x) != 1:
-                    raise _Fail(f"measured object is not unique: {sorted(x)}")
-                x = next(iter(x))
-            return ("number", a["quantity"], recompute_quantity(w, a["quantity"], int(x), a.get("to")))
-        if op == "mark":
-            marks = [int(m) for m in st.get("out") or []]
-            for m in marks:
-                if m not in w.objects or w.objects[m].mask is None:
-                    raise _Fail(f"marked object {m} is not a visible object of the frame")
-            return marks
-        if op == "choose":
-            opts = list(a["options"])
-            rel, anchor = a["relation"], a.get("anchor")
-            if a.get("mode") == "which" and rel not in ANCHORED:
-                sat = [o for o in opts if w.holds(rel, o, anchor)]
-                if len(sat) != 1:
-                    raise _Fail(f"choose which: {len(sat)} options satisfy {rel}")
-                return ("option", sat[0])
-            return ("option", self._most(opts, rel, anchor))
-        if op == "camera_turn":
-            fids = self.qa.frame_ids
-            if len(fids) != 2:
-                raise _Fail("camera_turn needs two frames")
-            d = camera_turn(self.frames[fids[0]], self.frames[fids[1]], a["axis"])
-            words = ("left", "right") if a["axis"] == "horizontal" else ("up", "down")
-            if abs(d) < math.radians(2.0):
-                raise _Undecided(f"camera turn {math.degrees(d):.2f} degrees is too small to tell")
-            return ("option", words[0] if d > 0 else words[1])
-        raise _Fail(f"unknown op {op!r}")
-
-    def _most(self, cands: list, rel: str, anchor: Any) -> Any:
-        """The candidate that decidedly wins against every other. Comparisons between two losers may be
-        undecided (they do not change the answer); an undecided comparison of the winner may not."""
-        w = self.w
-        winners, undecided = [], []
-        for x in cands:
-            try:
-                if all(w.holds(rel, x, y, anchor) if rel in ANCHORED else w.holds(rel, x, y)
-                       for y in cands if y != x):
-                    winners.append(x)
-            except _Undecided as e:
-                undecided.append(str(e))
-        if len(winners) == 1:
-            return winners[0]
-        if undecided:
-            raise _Undecided(undecided[0])
-        raise _Fail(f"no single {rel} winner among {cands}")
 
 
 # ------------------------------------------------------------------------------------------ checks
@@ -337,7 +61,7 @@ def _answer_key(v: Any) -> Any:
 
 
 def verify_qa(qa: QAPair, frames: dict[str, Frame], graphs: dict[str, SceneGraph],
-              worlds: dict[str, _World], order: list[str] | None = None) -> list[str]:
+              worlds: dict[str, World], order: list[str] | None = None) -> list[str]:
     """Reasons this QA pair fails (empty when it passes). `order`: the sample's frame ids in stored order
     (drawn marks name their image by position in it)."""
     problems: list[str] = []
@@ -346,7 +70,7 @@ def verify_qa(qa: QAPair, frames: dict[str, Frame], graphs: dict[str, SceneGraph
     fid = qa.frame_ids[0]
     frame, graph = frames[fid], graphs[fid]
     if fid not in worlds:
-        worlds[fid] = _World(frame, graph)
+        worlds[fid] = World(frame, graph)
     w = worlds[fid]
     if tuple(qa.image_size) != (frame.camera.width, frame.camera.height):
         problems.append(f"image_size {list(qa.image_size)} is not the frame's {[frame.camera.width, frame.camera.height]}")
@@ -361,23 +85,23 @@ def verify_qa(qa: QAPair, frames: dict[str, Frame], graphs: dict[str, SceneGraph
     # --- phrases
     problems += _check_phrases(qa, graph, frame)
     # --- program re-evaluation, margins, degeneracy
-    run = _Run(w, frames, qa)
+    run = Run(w, frames, qa)
     final = None
     try:
         final, env = run.run()
-    except _Undecided as e:
+    except Undecided as e:
         problems.append(f"relation asked inside its margin: {e}")
-    except _Fail as e:
+    except Fail as e:
         problems.append(f"program does not re-evaluate: {e}")
     except (KeyError, TypeError, ValueError, IndexError) as e:
         problems.append(f"program record unreadable: {type(e).__name__}: {e}")
     if final is not None:
         for k, st in enumerate(qa.program):
-            if st["op"] not in ("relate", "between", "at", "superlative", "ordinal", "compare", "is_at"):
+            if st["op"] not in OPS or not OPS[st["op"]].droppable:
                 continue
             try:
                 alt, _ = run.run(drop=k)
-            except (_Undecided, _Fail):
+            except (Undecided, Fail):
                 continue
             if _answer_key(alt) == _answer_key(final):
                 problems.append(f"degenerate step {k + 1} ({st['op']}): removing it leaves the answer unchanged")
@@ -424,7 +148,7 @@ def _walk(x: Any):
             yield from _walk(v)
 
 
-def _check_answer(qa: QAPair, final: Any, w: _World, frame: Frame, graph: SceneGraph) -> list[str]:
+def _check_answer(qa: QAPair, final: Any, w: World, frame: Frame, graph: SceneGraph) -> list[str]:
     s = qa.answer_struct or {}
     kind = s.get("kind")
     W, H = frame.camera.width, frame.camera.height
@@ -513,7 +237,7 @@ def _check_answer(qa: QAPair, final: Any, w: _World, frame: Frame, graph: SceneG
     return [f"unknown answer kind {kind!r}"]
 
 
-def _check_marks(qa: QAPair, w: _World, order: list[str]) -> list[str]:
+def _check_marks(qa: QAPair, w: World, order: list[str]) -> list[str]:
     """Drawn marks belong on the asked image: each names the position of the QA's frame in the sample, an
     object of that frame, its 2D box as stored, and (when given) a point inside that object's visible mask."""
     from refspatial_gen.core.mask import denormalise_point
@@ -549,7 +273,7 @@ def _find_region(graph: SceneGraph, r: dict):
     return None
 
 
-def _check_trace(qa: QAPair, w: _World) -> list[str]:
+def _check_trace(qa: QAPair, w: World) -> list[str]:
     out: list[str] = []
     if qa.steps >= 2 and not qa.trace:
         return ["multi-step question without a reasoning trace"]
@@ -616,7 +340,7 @@ def verify_sample(sample: Sample) -> list[dict]:
     frames = {f.frame_id: f for f in sample.frames}
     graphs = {g.frame_id: g for g in sample.graphs}
     order = [f.frame_id for f in sample.frames]
-    worlds: dict[str, _World] = {}
+    worlds: dict[str, World] = {}
     out = []
     for qa in sample.qa:
         for reason in verify_qa(qa, frames, graphs, worlds, order):

@@ -72,6 +72,7 @@ class Relation:
     # "pairwise" (a property of a pair: relate, compare, choose), "anchored" (A closer to C than B: needs an
     # anchor), "" (asked only through its own op or quantity, or not at all)
     qa: str = ""
+    key_step: str = ""  # what a reasoning trace must perceive of the objects: "Size" | "Orientation" | ""
     variadic: bool = False  # takes a variable number of arguments (free_space: surface, kind, anchors...)
     world_only: bool | None = None  # not evaluated without gravity (default: "gravity" in needs)
     # geometry: evaluate(geom, *args) -> RelationFact (tests and the verifier's independent path)

@@ -258,7 +258,7 @@ for _rel, _sign, _what in (("facing", 1.0, "B lies within a 30-degree cone aroun
     register(Relation(_rel, "orientation", "obj", 2,
                       f"angle between A's {'front' if _sign > 0 else 'back'} and the direction to B (rad)",
                       "facing_cone, facing_margin", _what, sources=FRONT_SOURCES, storage="sparse", needs=F,
-                      qa="pairwise", evaluate=_facing_eval(_sign, _rel), stored=_facing_stored(_rel, _sign),
+                      qa="pairwise", key_step="Orientation", evaluate=_facing_eval(_sign, _rel), stored=_facing_stored(_rel, _sign),
                       cell=sparse_cell(_rel, _facing_absent), table=sparse_table(_rel, _facing_row)))
 for _rel, _what in (("obj_front", "in front of"), ("obj_left", "to the left of"), ("obj_behind", "behind"),
                     ("obj_right", "to the right of")):

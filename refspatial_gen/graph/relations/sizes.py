@@ -87,13 +87,13 @@ G = ("gravity",)
 
 def _size(rid: str, value: str, margin: str, definition: str) -> None:
     register(Relation(rid, "sizes", "world", 2, value, margin, definition, storage="derived", needs=G,
-                      qa="ordered", evaluate=pair_evaluator(_MATRICES[rid], rid), cell=_cell(rid),
+                      qa="ordered", key_step="Size", evaluate=pair_evaluator(_MATRICES[rid], rid), cell=_cell(rid),
                       table=_table(rid)))
 
 
 def _mirror(rid: str, of: str, value: str, margin: str, definition: str) -> None:
     register(Relation(rid, "sizes", "world", 2, value, margin, definition, mirror_of=of, storage="derived",
-                      needs=G, qa="ordered", evaluate=pair_evaluator(_MATRICES[of], of, rid)))
+                      needs=G, qa="ordered", key_step="Size", evaluate=pair_evaluator(_MATRICES[of], of, rid)))
 
 
 _MATRICES = {"tall": _tall, "big": _big, "wide": _wide}
