@@ -27,7 +27,7 @@ def test_answer_chain_flags_follow_the_set_chain():
     ts = _templates()
     assert ts["identify/two_conditions"].program.answer_chain == (True, True, True, False)
     assert ts["locate/relation_closest"].program.answer_chain == (True, True, False, False)  # superlative feeds locate
-    assert ts["locate/by_phrase"].program.answer_chain == (False)
+    assert ts["locate/by_phrase"].program.answer_chain == (False,)
     assert not any(ts["choice/yes_no_relation"].program.answer_chain)  # a yes/no answer is not an object
 
 

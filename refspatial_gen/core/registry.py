@@ -43,6 +43,8 @@ class Registry(Generic[T]):
             raise ValueError(f"{self.kind} {name!r} registered twice")
         self._targets[name] = target
         self._loaded.pop(name, None)
+        if not isinstance(target, str):
+            self._loaded[name] = target
 
     def remove(self, name: str) -> None:
         """Forget an entry (tests that register a toy plug-in clean up after themselves)."""
@@ -67,6 +69,12 @@ class Registry(Generic[T]):
     def __getitem__(self, name: str) -> T:
         hit = self._loaded.get(name)  # the hot path (relation lookups): one dict read
         return hit if hit is not None else self.get(name)
+
+    @property
+    def loaded(self) -> dict[str, T]:
+        """The entries imported so far (every object entry), as a live dict: a plain lookup for hot paths that
+        know their entries are objects (relations). Read it, never write it."""
+        return self._loaded
 
     def values(self) -> list[T]:
         """Every entry (imported), in registration order."""

@@ -22,6 +22,7 @@ from refspatial_gen.graph.constants import Thresholds
 from refspatial_gen.graph.relations import REGISTRY
 from refspatial_gen.graph.relations.base import Cell, Relation, Rows
 
+_RELATIONS = REGISTRY.loaded  # id -> Relation (every relation is registered as an object)
 _FLIP = (1, 0, 2, 3)  # table code of not-R from R's
 _UNSET = object()
 _THRESHOLDS: dict[tuple[Any, ...], Thresholds] = {}
@@ -128,7 +129,7 @@ class RelationTables:
     def cell(self, relation: str, args: tuple[Any, ...]) -> Cell | None:
         """The instance (decided or undecided), or None when it was not evaluated (unknown object, no gravity,
         no front direction, repeated argument...)."""
-        rel = REGISTRY[relation]
+        rel = _RELATIONS.get(relation) or REGISTRY[relation]
         if len(args) != rel.arity and not rel.variadic:
             raise ValueError(f"{relation} takes {rel.arity} arguments, got {len(args)}")
         nodes = self.nodes
@@ -158,7 +159,7 @@ class RelationTables:
         """rows[i][j] = code of relation(ids[i], ids[j]) for a binary relation with a table, else None."""
         if relation in self._codes:
             return self._codes[relation]
-        rel = REGISTRY[relation]
+        rel = _RELATIONS.get(relation) or REGISTRY[relation]
         out: Rows | None = None
         if rel.gated and not self.world:
             out = None
@@ -175,7 +176,7 @@ class RelationTables:
 
     def columns(self, relation: str) -> Rows | None:
         """cols[j][i] = code of relation(ids[i], ids[j]): one list per anchor (the QA engine's sets)."""
-        rel: Relation = REGISTRY[relation]
+        rel: Relation = _RELATIONS.get(relation) or REGISTRY[relation]
         if rel.mirror_of and not (rel.gated and not self.world):
             return self.codes(rel.mirror_of)  # mirror(x, anchor) = base(anchor, x): the base's rows
         rows = self.codes(relation)

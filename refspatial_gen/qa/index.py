@@ -164,7 +164,9 @@ class SceneIndex:
         key = (relation, anchor)
         entry = self._rel_sets.get(key)
         if entry is None:
-            cols = self._columns(relation)
+            cols = self._cols.get(relation, _MISS)
+            if cols is _MISS:
+                cols = self._columns(relation)
             pos = self._pos.get(anchor) if cols is not None else None
             entry = self._rel_sets[key] = self._entry_of(relation, anchor, None if pos is None else cols[pos])  # type: ignore[index]
         return entry

@@ -14,10 +14,13 @@ from typing import Any, NamedTuple
 from refspatial_gen.core.model import KeyStep
 from refspatial_gen.graph.relations import REGISTRY
 from refspatial_gen.qa.index import Reject, SceneIndex
-from refspatial_gen.qa.ops.base import FREE_KINDS
+from refspatial_gen.qa.ops.base import FREE_KINDS, Op
 from refspatial_gen.qa.program import Step, Template
 from refspatial_gen.qa.render import LETTERS, round_key
 from refspatial_gen.qa.values import PointValue
+
+
+_RELATIONS = REGISTRY.loaded  # id -> Relation
 
 
 class KeyPlan(NamedTuple):
@@ -29,6 +32,7 @@ class KeyPlan(NamedTuple):
     single: tuple[str, ...]  # env names of single-object arguments (anchor, a, b, of, to), in that order
     lists: tuple[str, ...]  # env names inside list arguments (anchors, options)
     extra: Any  # the op's own plan (Op.key_extra)
+    own: bool  # the op adds key steps of its own (overrides Op.key_steps)
 
 
 def plan_keys(t: Template) -> tuple[KeyPlan, ...]:
@@ -42,7 +46,8 @@ def plan_keys(t: Template) -> tuple[KeyPlan, ...]:
                        if a.get(k) is not None and a[k].kind in ("slot", "step"))
         lists = tuple(x.value for k in ("anchors", "options") if a.get(k) is not None and a[k].kind == "list"
                       for x in a[k].value)
-        out.append(KeyPlan(st, lit, slot, single, lists, st.impl.key_extra(st)))
+        own = type(st.impl).key_steps is not Op.key_steps
+        out.append(KeyPlan(st, lit, slot, single, lists, st.impl.key_extra(st), own))
     return tuple(out)
 
 
@@ -69,26 +74,26 @@ class KeyWriter:
     def name(self, o: int) -> str:
         return self.idx.phrase.get(o) or f"the target {self.idx.category[o]}"
 
-    def _add(self, kind: str, phrase: str, value: list[float]) -> None:
-        done = self._done[kind]
-        if phrase not in done:
-            done.add(phrase)
-            self.out.append(KeyStep(kind, phrase, value))
-
     def pos(self, o: int, phrase: str | None = None) -> None:
-        ph = phrase or self.name(o)
-        if ph not in self._done["Position"]:
-            self._add("Position", ph, self.idx.key_point(o))
+        ph = phrase or self.idx.phrase.get(o) or f"the target {self.idx.category[o]}"
+        done = self._done["Position"]
+        if ph not in done:
+            done.add(ph)
+            self.out.append(KeyStep("Position", ph, self.idx.key_point(o)))
 
     def size(self, o: int) -> None:
         ph = self.name(o)
-        if ph not in self._done["Size"]:
-            self._add("Size", ph, round_key(self.idx.size(o)))
+        done = self._done["Size"]
+        if ph not in done:
+            done.add(ph)
+            self.out.append(KeyStep("Size", ph, round_key(self.idx.size(o))))
 
     def orient(self, o: int) -> None:
         ph = self.name(o)
-        if ph not in self._done["Orientation"]:
-            self._add("Orientation", ph, round_key(self.idx.front_cam(o)))
+        done = self._done["Orientation"]
+        if ph not in done:
+            done.add(ph)
+            self.out.append(KeyStep("Orientation", ph, round_key(self.idx.front_cam(o))))
 
 
 def key_steps(t: Template, env: dict[str, Any], ans: Any, idx: SceneIndex) -> list[KeyStep]:
@@ -96,7 +101,7 @@ def key_steps(t: Template, env: dict[str, Any], ans: Any, idx: SceneIndex) -> li
     keys = KeyWriter(idx, t.steps)
     for kp in t.program.keys:
         rel = kp.rel_literal if kp.rel_slot is None else env[kp.rel_slot]
-        sized = rel is not None and REGISTRY[rel].key_step == "Size"
+        sized = rel is not None and _RELATIONS[rel].key_step == "Size"
         for nm in kp.single:
             o = one(env[nm])
             keys.pos(o)
@@ -107,7 +112,8 @@ def key_steps(t: Template, env: dict[str, Any], ans: Any, idx: SceneIndex) -> li
             keys.pos(o)
             if sized:
                 keys.size(o)
-        kp.step.impl.key_steps(kp.step, kp.extra, env, rel, keys)
+        if kp.own:
+            kp.step.impl.key_steps(kp.step, kp.extra, env, rel, keys)
     if isinstance(ans, PointValue):
         phrase_of = idx.phrase
         if ans.region is not None:

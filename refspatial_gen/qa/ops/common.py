@@ -17,9 +17,13 @@ NOT_UNIQUE, SAME_OBJECT, NO_ANCHOR, NO_POINT = (Reject("not_unique"), Reject("sa
 EMPTY_SET: frozenset[int] = frozenset()
 
 
+_RELATIONS = REGISTRY.loaded  # id -> Relation, a plain dict read on the hot path
+
+
 def anchored(relation: str) -> bool:
     """Does the relation compare distances to an anchor (close/far: three arguments)?"""
-    return REGISTRY[relation].qa == "anchored"
+    rel = _RELATIONS.get(relation) or REGISTRY[relation]
+    return rel.qa == "anchored"
 
 
 def resolve(ref: Ref | None, env: dict[str, Any], prev: Any, idx: SceneIndex) -> Any:

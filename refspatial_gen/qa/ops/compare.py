@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Collection
 from typing import TYPE_CHECKING, Any
 
-from refspatial_gen.graph.relations import REGISTRY
+from refspatial_gen.graph.relations import REGISTRY, ids_by_use
 from refspatial_gen.qa.index import Reject
 from refspatial_gen.qa.ops.base import BOOL, Arg, Op
 from refspatial_gen.qa.ops.common import (
@@ -68,6 +68,7 @@ class Compare(Op):
         if rel is None or an is None or bn is None or (a.get("anchor") is not None and cn is None):
             return None
         rel_name, rel_lit = rel
+        with_anchor = frozenset(ids_by_use("anchored"))  # the relations known when the template compiles
 
         def fn(env: dict[str, Any], prev: Any, ctx: Any) -> Any:
             r = rel_lit if rel_name is None else env[rel_name]
@@ -83,7 +84,7 @@ class Compare(Op):
             anchor = env[cn] if cn is not None else None
             if x == y or (anchor is not None and (anchor == x or anchor == y)):
                 return SAME_OBJECT
-            if REGISTRY[r].qa == "anchored":
+            if r in with_anchor:
                 if anchor is None:
                     return NO_ANCHOR
                 h = ctx.idx.decision(r, (x, y, anchor))
