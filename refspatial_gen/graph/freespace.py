@@ -12,6 +12,8 @@ re-checked after rounding to RefSpatial's three decimals with `check_free_point`
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import shapely
 from shapely.geometry import Polygon
@@ -253,81 +255,85 @@ def free_regions(geom: SceneGeom) -> list[FreeSpaceRegion]:
 def _build(geom: SceneGeom) -> list[FreeSpaceRegion]:
     from refspatial_gen.graph.relations.surface import surface_labels
 
-    th = geom.th
-    supports, roots = get_supports(geom)
+    supports, _roots = get_supports(geom)
     labels = surface_labels(geom)
-    axes = geom.camera_axes_horizontal()
-    scale = geom.cache.get("scale", "tabletop")
-    G = geom.gravity.rotation
-    meta = {"thresholds": th.to_json(), "gravity": {"rotation": G.tolist()}}
+    meta = {"thresholds": geom.th.to_json(), "gravity": {"rotation": geom.gravity.rotation.tolist()}}
     stub = SceneGraph(geom.frame.frame_id, [], [], [], meta)
     out: list[FreeSpaceRegion] = []
     for s in geom.surfaces:
-        z = s.top_z
-        surf = Polygon(surface_polygon(s.box)).buffer(-th.free_clearance, join_style="mitre")
-        view = _view_polygon(geom, z)
-        if surf.is_empty or view is None:
+        out += _surface_regions(geom, s, supports, labels.get(s.id, {}), stub)
+    return out
+
+
+def _surface_regions(geom: SceneGeom, s: Any, supports: Any, lab: dict[str, Any], stub: SceneGraph
+                     ) -> list[FreeSpaceRegion]:
+    """The free regions of one support surface: beside each object standing on it (left/right/front/behind),
+    between neighbouring objects, and in its labelled corners and along its labelled edges."""
+    th = geom.th
+    z = s.top_z
+    surf = Polygon(surface_polygon(s.box)).buffer(-th.free_clearance, join_style="mitre")
+    view = _view_polygon(geom, z)
+    if surf.is_empty or view is None:
+        return []
+    obst_fp = _obstacles(geom, z, th.support_gap)
+    outline = surface_polygon(s.box)
+    obst = list(shapely.buffer(shapely.polygons(np.asarray(obst_fp, float)), th.free_clearance, join_style="mitre")) if obst_fp else []
+    free = surf.intersection(view)
+    if obst:
+        free = free.difference(unary_union(obst))
+    if free.is_empty:
+        return []
+    out: list[FreeSpaceRegion] = []
+
+    def add(kind: str, anchors: tuple[int, ...], shape: Any, label: str = "") -> None:
+        poly = _largest(free.intersection(shape))
+        if poly is not None:
+            r = _region(geom, stub, s.id, kind, anchors, poly, z, label, obst_fp, outline)
+            if r is not None:
+                out.append(r)
+
+    on_s = [i for i in np.argsort(geom.ids, kind="stable")
+            if supports[i] is not None and supports[i].kind == "surface" and supports[i].ref == s.id]
+    axes = geom.camera_axes_horizontal()
+    if axes is not None:
+        right, fwd = axes
+        dirs = (("left_of", -right[:2]), ("right_of", right[:2]), ("in_front_of", -fwd[:2]), ("behind", fwd[:2]))
+        for i in on_s:
+            fp = geom.footprints[i]
+            diag = float(np.linalg.norm(fp[2] - fp[0]))
+            radius = diag / 2 + max(diag, th.free_radius_min)
+            for kind, d in dirs:
+                add(kind, (int(geom.ids[i]),), _wedge(geom.centers[i, :2], d, radius))
+    for i, j in _between_pairs(geom, on_s):
+        hull = shapely.convex_hull(shapely.MultiPoint(np.vstack([geom.footprints[i], geom.footprints[j]])))
+        add("between", (int(geom.ids[i]), int(geom.ids[j])), hull)
+    spoly = lab.get("polygon")
+    for name, p in sorted(lab.get("corners", {}).items()):
+        k = int(np.argmin(np.linalg.norm(spoly - p, axis=1)))
+        e1 = spoly[(k + 1) % 4] - p
+        e2 = spoly[(k - 1) % 4] - p
+        e1 = e1 / np.linalg.norm(e1) * min(th.corner_size, np.linalg.norm(e1) / 2)
+        e2 = e2 / np.linalg.norm(e2) * min(th.corner_size, np.linalg.norm(e2) / 2)
+        add("corner", (), shapely.polygons(np.array([p, p + e1, p + e1 + e2, p + e2])), f"{name} corner")
+    for name, (a, b) in sorted(lab.get("edges", {}).items()):
+        e = (b - a) / np.linalg.norm(b - a)
+        inward = np.array([-e[1], e[0]])
+        w = min(th.edge_width, float(np.linalg.norm(b - a)) / 2)
+        add("edge", (), shapely.polygons(np.array([a, b, b + inward * w, a + inward * w])), name)
+    return out
+
+
+def _between_pairs(geom: SceneGeom, on_s: list[Any]) -> list[tuple[int, int]]:
+    """Each object on the surface with its nearest neighbours there, at a gap a free spot fits in."""
+    th = geom.th
+    pairs = set()
+    for i in on_s:
+        near = sorted((j for j in on_s if j != i), key=lambda j: (geom.surface_distance[i, j], int(geom.ids[j])))
+        pairs.update(tuple(sorted((int(i), int(j)), key=lambda k: int(geom.ids[k]))) for j in near[:BETWEEN_NEIGHBOURS])
+    out = []
+    for i, j in sorted(pairs, key=lambda p: (int(geom.ids[p[0]]), int(geom.ids[p[1]]))):
+        gapd = geom.surface_distance[i, j]
+        if gapd < MIN_BETWEEN_GAP_FACTOR * th.free_clearance * 2 or gapd > MAX_BETWEEN_GAP[geom.cache.get("scale", "tabletop")]:
             continue
-        obst_fp = _obstacles(geom, z, th.support_gap)
-        outline = surface_polygon(s.box)
-        obst = list(shapely.buffer(shapely.polygons(np.asarray(obst_fp, float)), th.free_clearance, join_style="mitre")) if obst_fp else []
-        free = surf.intersection(view)
-        if obst:
-            free = free.difference(unary_union(obst))
-        if free.is_empty:
-            continue
-        on_s = [i for i in np.argsort(geom.ids, kind="stable")
-                if supports[i] is not None and supports[i].kind == "surface" and supports[i].ref == s.id]
-        if axes is not None:
-            right, fwd = axes
-            dirs = (("left_of", -right[:2]), ("right_of", right[:2]), ("in_front_of", -fwd[:2]), ("behind", fwd[:2]))
-            for i in on_s:
-                fp = geom.footprints[i]
-                diag = float(np.linalg.norm(fp[2] - fp[0]))
-                radius = diag / 2 + max(diag, th.free_radius_min)
-                c = geom.centers[i, :2]
-                for kind, d in dirs:
-                    poly = _largest(free.intersection(_wedge(c, d, radius)))
-                    if poly is not None:
-                        r = _region(geom, stub, s.id, kind, (int(geom.ids[i]),), poly, z, "", obst_fp, outline)
-                        if r is not None:
-                            out.append(r)
-        pairs = set()
-        for i in on_s:  # each anchor with its nearest neighbours on the surface
-            near = sorted((j for j in on_s if j != i), key=lambda j: (geom.surface_distance[i, j], int(geom.ids[j])))
-            pairs.update(tuple(sorted((int(i), int(j)), key=lambda k: int(geom.ids[k]))) for j in near[:BETWEEN_NEIGHBOURS])
-        for i, j in sorted(pairs, key=lambda p: (int(geom.ids[p[0]]), int(geom.ids[p[1]]))):
-            gapd = geom.surface_distance[i, j]
-            if gapd < MIN_BETWEEN_GAP_FACTOR * th.free_clearance * 2 or gapd > MAX_BETWEEN_GAP[scale]:
-                continue
-            hull = shapely.convex_hull(shapely.MultiPoint(np.vstack([geom.footprints[i], geom.footprints[j]])))
-            poly = _largest(free.intersection(hull))
-            if poly is not None:
-                r = _region(geom, stub, s.id, "between", (int(geom.ids[i]), int(geom.ids[j])), poly, z, "", obst_fp, outline)
-                if r is not None:
-                    out.append(r)
-        lab = labels.get(s.id, {})
-        spoly = lab.get("polygon")
-        for name, p in sorted(lab.get("corners", {}).items()):
-            k = int(np.argmin(np.linalg.norm(spoly - p, axis=1)))
-            e1 = spoly[(k + 1) % 4] - p
-            e2 = spoly[(k - 1) % 4] - p
-            e1 = e1 / np.linalg.norm(e1) * min(th.corner_size, np.linalg.norm(e1) / 2)
-            e2 = e2 / np.linalg.norm(e2) * min(th.corner_size, np.linalg.norm(e2) / 2)
-            sq = shapely.polygons(np.array([p, p + e1, p + e1 + e2, p + e2]))
-            poly = _largest(free.intersection(sq))
-            if poly is not None:
-                r = _region(geom, stub, s.id, "corner", (), poly, z, f"{name} corner", obst_fp, outline)
-                if r is not None:
-                    out.append(r)
-        for name, (a, b) in sorted(lab.get("edges", {}).items()):
-            e = (b - a) / np.linalg.norm(b - a)
-            inward = np.array([-e[1], e[0]])
-            w = min(th.edge_width, float(np.linalg.norm(b - a)) / 2)
-            band = shapely.polygons(np.array([a, b, b + inward * w, a + inward * w]))
-            poly = _largest(free.intersection(band))
-            if poly is not None:
-                r = _region(geom, stub, s.id, "edge", (), poly, z, name, obst_fp, outline)
-                if r is not None:
-                    out.append(r)
+        out.append((i, j))
     return out

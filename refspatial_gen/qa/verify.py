@@ -151,90 +151,104 @@ def _walk(x: Any):
 def _check_answer(qa: QAPair, final: Any, w: World, frame: Frame, graph: SceneGraph) -> list[str]:
     s = qa.answer_struct or {}
     kind = s.get("kind")
+    if kind in ("points", "region"):
+        return _check_point(qa, s, final, w, frame, graph)
+    if kind == "choice":
+        return _check_choice(qa, s, final)
+    if kind == "number":
+        return _check_number(qa, s, final)
+    return [f"unknown answer kind {kind!r}"]
+
+
+def _check_point(qa: QAPair, s: dict[str, Any], final: Any, w: World, frame: Frame, graph: SceneGraph) -> list[str]:
     W, H = frame.camera.width, frame.camera.height
     out: list[str] = []
-    if kind in ("points", "region"):
-        pts = s.get("points") or []
-        text_pts = [(float(x), float(y)) for x, y in _POINTS.findall(qa.answer)]
-        if len(pts) != 1 or len(text_pts) != 1:
-            return [f"expected one answer point, got {pts} / {qa.answer!r}"]
-        p = (float(pts[0][0]), float(pts[0][1]))
-        if abs(p[0] - text_pts[0][0]) > 1e-9 or abs(p[1] - text_pts[0][1]) > 1e-9:
-            out.append(f"answer text {qa.answer!r} differs from the structured point {p}")
-        if not (0.0 <= p[0] <= 1.0 and 0.0 <= p[1] <= 1.0):
-            out.append(f"answer point {p} outside [0, 1]")
-        if kind == "points":
-            if not (isinstance(final, tuple) and final[0] == "object"):
-                return out + [f"program gives {final!r}, not an object"]
-            oid = final[1]
-            if list(s.get("object_ids") or []) != [oid] or list(qa.targets) != [oid]:
-                out.append(f"answer names object {s.get('object_ids')} / targets {qa.targets}, the program gives {oid}")
-            x, y = denormalise_point(p[0], p[1], W, H)
-            if not w.mask(oid)[y, x]:
-                out.append(f"answer point {p} (pixel {x},{y}) is outside the visible mask of object {oid}")
-        else:
-            from refspatial_gen.graph.freespace import check_free_point
+    pts = s.get("points") or []
+    text_pts = [(float(x), float(y)) for x, y in _POINTS.findall(qa.answer)]
+    if len(pts) != 1 or len(text_pts) != 1:
+        return [f"expected one answer point, got {pts} / {qa.answer!r}"]
+    p = (float(pts[0][0]), float(pts[0][1]))
+    if abs(p[0] - text_pts[0][0]) > 1e-9 or abs(p[1] - text_pts[0][1]) > 1e-9:
+        out.append(f"answer text {qa.answer!r} differs from the structured point {p}")
+    if not (0.0 <= p[0] <= 1.0 and 0.0 <= p[1] <= 1.0):
+        out.append(f"answer point {p} outside [0, 1]")
+    if s.get("kind") == "points":
+        if not (isinstance(final, tuple) and final[0] == "object"):
+            return out + [f"program gives {final!r}, not an object"]
+        oid = final[1]
+        if list(s.get("object_ids") or []) != [oid] or list(qa.targets) != [oid]:
+            out.append(f"answer names object {s.get('object_ids')} / targets {qa.targets}, the program gives {oid}")
+        x, y = denormalise_point(p[0], p[1], W, H)
+        if not w.mask(oid)[y, x]:
+            out.append(f"answer point {p} (pixel {x},{y}) is outside the visible mask of object {oid}")
+    else:
+        from refspatial_gen.graph.freespace import check_free_point
 
-            reg = _find_region(graph, s.get("region") or {})
-            if reg is None:
-                out.append(f"free-space region {s.get('region')} is not in the scene graph")
-            else:
-                out += [f"free point {p}: {m}" for m in check_free_point(frame, graph, reg, p)]
-        return out
-    if kind == "choice":
-        letter = s.get("letter")
-        opts = list(s.get("options") or [])
-        m = re.match(r"^\(([A-H])\)(?: (.*))?$", qa.answer)
-        if not m or m.group(1) != letter or letter not in LETTERS[:max(1, len(opts))]:
-            return [f"answer {qa.answer!r} does not match letter {letter!r} of {len(opts)} options"]
-        k = LETTERS.index(letter)
-        if m.group(2) is not None and m.group(2) != opts[k]:
-            out.append(f"answer text {m.group(2)!r} is not option {letter} ({opts[k]!r})")
-        if isinstance(final, bool):
-            if opts[k] != ("yes" if final else "no"):
-                out.append(f"answer is {opts[k]!r} but the relation re-evaluates to {final}")
-            if sorted(opts) != ["no", "yes"]:
-                out.append(f"yes/no options are {opts}")
-        elif isinstance(final, tuple) and final[0] == "option":
-            if "marks" in s:
-                got = s["marks"][k]["object_id"] if k < len(s["marks"]) else None
-            elif "option_ids" in s:
-                got = s["option_ids"][k]
-            else:
-                got = opts[k]
-            if got != final[1]:
-                out.append(f"answer {letter} names {got!r} but the re-evaluated choice is {final[1]!r}")
+        reg = _find_region(graph, s.get("region") or {})
+        if reg is None:
+            out.append(f"free-space region {s.get('region')} is not in the scene graph")
         else:
-            out.append(f"choice answer but the program gives {final!r}")
-        for i, o in enumerate(opts):
-            if o and f"({LETTERS[i]}) {o}" not in qa.question:
-                out.append(f"option ({LETTERS[i]}) {o!r} is not written in the question")
-        return out
-    if kind == "number":
-        if not (isinstance(final, tuple) and final[0] == "number"):
-            return [f"number answer but the program gives {final!r}"]
-        q, got = final[1], final[2]
-        v = float(s.get("value", float("nan")))
-        if not _close(v, got, q):
-            out.append(f"{q}: answer {v:.4f} but the geometry gives {got:.4f}")
-        nums = re.findall(r"-?[0-9]+(?:\.[0-9]+)?", qa.answer)
-        if not nums:
-            out.append(f"answer text {qa.answer!r} has no number")
+            out += [f"free point {p}: {m}" for m in check_free_point(frame, graph, reg, p)]
+    return out
+
+
+def _check_choice(qa: QAPair, s: dict[str, Any], final: Any) -> list[str]:
+    out: list[str] = []
+    letter = s.get("letter")
+    opts = list(s.get("options") or [])
+    m = re.match(r"^\(([A-H])\)(?: (.*))?$", qa.answer)
+    if not m or m.group(1) != letter or letter not in LETTERS[:max(1, len(opts))]:
+        return [f"answer {qa.answer!r} does not match letter {letter!r} of {len(opts)} options"]
+    k = LETTERS.index(letter)
+    if m.group(2) is not None and m.group(2) != opts[k]:
+        out.append(f"answer text {m.group(2)!r} is not option {letter} ({opts[k]!r})")
+    if isinstance(final, bool):
+        if opts[k] != ("yes" if final else "no"):
+            out.append(f"answer is {opts[k]!r} but the relation re-evaluates to {final}")
+        if sorted(opts) != ["no", "yes"]:
+            out.append(f"yes/no options are {opts}")
+    elif isinstance(final, tuple) and final[0] == "option":
+        if "marks" in s:
+            got = s["marks"][k]["object_id"] if k < len(s["marks"]) else None
+        elif "option_ids" in s:
+            got = s["option_ids"][k]
         else:
-            t = float(nums[0])
-            if "centimeter" in qa.answer:
-                t /= 100.0
-            elif "degree" in qa.answer:
-                t = math.radians(t)
-                if qa.answer.startswith("rotate") and re.search(r"rotate (left|down)", qa.answer):
-                    t = -t
-            tol = 0.006 if "meter" in qa.answer and "centi" not in qa.answer else (0.0051 if "centi" in qa.answer
-                                                                                 else math.radians(0.051))
-            ref = abs(v) if q == "angle" else v
-            if abs(t - ref) > tol:
-                out.append(f"answer text {qa.answer!r} does not render the value {v:.4f}")
-        return out
-    return [f"unknown answer kind {kind!r}"]
+            got = opts[k]
+        if got != final[1]:
+            out.append(f"answer {letter} names {got!r} but the re-evaluated choice is {final[1]!r}")
+    else:
+        out.append(f"choice answer but the program gives {final!r}")
+    for i, o in enumerate(opts):
+        if o and f"({LETTERS[i]}) {o}" not in qa.question:
+            out.append(f"option ({LETTERS[i]}) {o!r} is not written in the question")
+    return out
+
+
+def _check_number(qa: QAPair, s: dict[str, Any], final: Any) -> list[str]:
+    out: list[str] = []
+    if not (isinstance(final, tuple) and final[0] == "number"):
+        return [f"number answer but the program gives {final!r}"]
+    q, got = final[1], final[2]
+    v = float(s.get("value", float("nan")))
+    if not _close(v, got, q):
+        out.append(f"{q}: answer {v:.4f} but the geometry gives {got:.4f}")
+    nums = re.findall(r"-?[0-9]+(?:\.[0-9]+)?", qa.answer)
+    if not nums:
+        out.append(f"answer text {qa.answer!r} has no number")
+    else:
+        t = float(nums[0])
+        if "centimeter" in qa.answer:
+            t /= 100.0
+        elif "degree" in qa.answer:
+            t = math.radians(t)
+            if qa.answer.startswith("rotate") and re.search(r"rotate (left|down)", qa.answer):
+                t = -t
+        tol = 0.006 if "meter" in qa.answer and "centi" not in qa.answer else (0.0051 if "centi" in qa.answer
+                                                                             else math.radians(0.051))
+        ref = abs(v) if q == "angle" else v
+        if abs(t - ref) > tol:
+            out.append(f"answer text {qa.answer!r} does not render the value {v:.4f}")
+    return out
 
 
 def _check_marks(qa: QAPair, w: World, order: list[str]) -> list[str]:

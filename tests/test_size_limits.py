@@ -1,0 +1,67 @@
+"""Small modules with one job: modules at most 400 lines, functions at most 80 (walked from the AST of
+refspatial_gen/). The test lists every offender outside the allow-list."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+PKG = Path(__file__).resolve().parents[1] / "refspatial_gen"
+MAX_MODULE_LINES = 400
+MAX_FUNCTION_LINES = 80
+
+# Offenders in packages other engineers were editing while core/, graph/, qa/, cli/ and tools/ were brought
+# within the limits (issue #20). The lead empties this list after the parallel work has merged.
+ALLOWED = {
+    "assets/shapes.py",
+    "run/preview.py",
+    "run/report.py",
+    "run/report.py:render_html",
+    "sources/image/source.py",
+    "sources/image/source.py:build_frame",
+    "sources/image/boxseg.py:assign_boxes",
+    "sources/scan/frames.py:view_to_frame",
+    "sources/sim/physics.py:build_model",
+    "depth/geometric.py:estimate",
+}
+
+
+def offenders() -> list[str]:
+    out = []
+    for path in sorted(PKG.rglob("*.py")):
+        rel = str(path.relative_to(PKG))
+        src = path.read_text()
+        n = len(src.splitlines())
+        if n > MAX_MODULE_LINES:
+            out.append((rel, f"{rel}: {n} lines"))
+        for node in ast.walk(ast.parse(src)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                length = (node.end_lineno or node.lineno) - node.lineno + 1
+                if length > MAX_FUNCTION_LINES:
+                    out.append((f"{rel}:{node.name}", f"{rel}:{node.lineno} {node.name}: {length} lines"))
+    return [msg for key, msg in out if key not in ALLOWED]
+
+
+def test_modules_and_functions_within_size_limits() -> None:
+    assert offenders() == []
+
+
+def test_allow_list_names_only_current_offenders() -> None:
+    """An entry whose module or function shrank below the limit must leave the list (it only ever shrinks)."""
+    stale = []
+    for key in ALLOWED:
+        rel, _, fn = key.partition(":")
+        path = PKG / rel
+        if not path.exists():
+            stale.append(key)
+            continue
+        src = path.read_text()
+        if not fn:
+            if len(src.splitlines()) <= MAX_MODULE_LINES:
+                stale.append(key)
+            continue
+        lengths = [(n.end_lineno or n.lineno) - n.lineno + 1 for n in ast.walk(ast.parse(src))
+                   if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)) and n.name == fn]
+        if not lengths or max(lengths) <= MAX_FUNCTION_LINES:
+            stale.append(key)
+    assert not stale, stale
