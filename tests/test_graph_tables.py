@@ -21,8 +21,12 @@ def graphs() -> list[SceneGraph]:
     # touching stored in the reverse direction) so those tables are exercised too
     g2 = SceneGraph.from_json(out[0].to_json())
     a, b, c, d, e = sorted(n.object_id for n in g2.nodes)[:5]
-    g2.facts += [RelationFact("inside", (a, b), True, 0.9, 0.1), RelationFact("inside", (c, d), None, 0.3, 0.1),
-                 RelationFact("touching", (b, a), True, 0.0, 0.01), RelationFact("touching", (d, e), None, 0.01, 0.01)]
+    g2.facts += [
+        RelationFact("inside", (a, b), True, 0.9, 0.1),
+        RelationFact("inside", (c, d), None, 0.3, 0.1),
+        RelationFact("touching", (b, a), True, 0.0, 0.01),
+        RelationFact("touching", (d, e), None, 0.01, 0.01),
+    ]
     return [*out, g2]
 
 

@@ -36,9 +36,20 @@ def _same_colour_cell(t: Any, args: tuple[Any, ...]) -> Cell | None:
     return Cell(holds, float(holds or 0.0), 0.0)
 
 
-TOY_RELATION = Relation("same_colour", "toy", "obj", 2, "1 when the colour words agree", "", "A has B's colour word",
-                        storage="derived", spec=False, qa="pairwise", evaluate=_same_colour_geometry,
-                        cell=_same_colour_cell)
+TOY_RELATION = Relation(
+    "same_colour",
+    "toy",
+    "obj",
+    2,
+    "1 when the colour words agree",
+    "",
+    "A has B's colour word",
+    storage="derived",
+    spec=False,
+    qa="pairwise",
+    evaluate=_same_colour_geometry,
+    cell=_same_colour_cell,
+)
 
 
 # ---------------------------------------------------------------- a toy op: keep the objects for which a relation fails
@@ -67,15 +78,24 @@ class Exclude(Op):
         return frozenset(x for x in run.input_set(a) if x != anchor and not run.w.holds(a["relation"], x, anchor))
 
 
-TEMPLATE = {"templates": [{
-    "name": "left_not_same_colour",
-    "slots": {"b": "anchor", "a": "anchor",
-              "col": {"type": "relation", "choices": ["same_colour"], "phrases": {"same_colour": "the colour of"}}},
-    "program": [{"op": "relate", "relation": "left", "anchor": "b"},
+TEMPLATE = {
+    "templates": [
+        {
+            "name": "left_not_same_colour",
+            "slots": {
+                "b": "anchor",
+                "a": "anchor",
+                "col": {"type": "relation", "choices": ["same_colour"], "phrases": {"same_colour": "the colour of"}},
+            },
+            "program": [
+                {"op": "relate", "relation": "left", "anchor": "b"},
                 {"op": "exclude", "relation": "col", "anchor": "a"},
-                {"op": "locate"}],
-    "text": ["Point to the object left of {b} that is not {col} {a}."],
-}]}
+                {"op": "locate"},
+            ],
+            "text": ["Point to the object left of {b} that is not {col} {a}."],
+        }
+    ]
+}
 
 
 @pytest.fixture()

@@ -22,8 +22,12 @@ def scenes():
     f, g = out[0]
     g2 = SceneGraph.from_json(g.to_json())
     a, b, c, d, e = sorted(n.object_id for n in g2.nodes)[:5]
-    g2.facts += [RelationFact("inside", (a, b), True, 0.9, 0.1), RelationFact("inside", (c, d), None, 0.3, 0.1),
-                 RelationFact("touching", (b, a), True, 0.0, 0.01), RelationFact("touching", (d, e), None, 0.01, 0.01)]
+    g2.facts += [
+        RelationFact("inside", (a, b), True, 0.9, 0.1),
+        RelationFact("inside", (c, d), None, 0.3, 0.1),
+        RelationFact("touching", (b, a), True, 0.0, 0.01),
+        RelationFact("touching", (d, e), None, 0.01, 0.01),
+    ]
     out.append((f, g2))
     return out
 
@@ -42,9 +46,29 @@ def test_scene_index_between_set_matches_memberwise(scenes):
                 assert idx.between(b, c, s) == frozenset(x for x, fa in zip(members, facts) if fa.holds)
 
 
-RELATE_RELATIONS = ("left", "right", "front", "behind", "above_image", "below_image", "above_world", "below_world",
-                    "tall", "short", "big", "small", "wide", "thin", "far_from", "facing", "facing_away", "outside",
-                    "inside", "touching", "next_to")
+RELATE_RELATIONS = (
+    "left",
+    "right",
+    "front",
+    "behind",
+    "above_image",
+    "below_image",
+    "above_world",
+    "below_world",
+    "tall",
+    "short",
+    "big",
+    "small",
+    "wide",
+    "thin",
+    "far_from",
+    "facing",
+    "facing_away",
+    "outside",
+    "inside",
+    "touching",
+    "next_to",
+)
 
 
 def test_relation_tables_match_memberwise_facts(scenes):
@@ -90,9 +114,13 @@ def test_compiled_steps_agree_with_run_step(scenes):
                         continue
                     names = [n for n in t.slots if t.slots[n].type in ("relation", "object", "anchor")]
                     used = {r.value for r in st.args.values() if r.kind == "slot"} | {
-                        x.value for r in st.args.values() if r.kind == "list" for x in r.value}
-                    cands = [slot_candidates(t, n, {}, Context(idx, np.random.default_rng(0)))[:6]
-                             for n in names if n in used]
+                        x.value for r in st.args.values() if r.kind == "list" for x in r.value
+                    }
+                    cands = [
+                        slot_candidates(t, n, {}, Context(idx, np.random.default_rng(0)))[:6]
+                        for n in names
+                        if n in used
+                    ]
                     for prev in (None, idx.all, frozenset(list(idx.ids)[:4])):
                         for combo in product(*cands):
                             env = dict(zip([n for n in names if n in used], combo))
@@ -178,8 +206,8 @@ def test_replay_with_compiled_steps_matches_interpreter(scenes, monkeypatch):
     import dataclasses
 
     from refspatial_gen.qa.bench import default_config
-    from refspatial_gen.qa.ops.common import generic
     from refspatial_gen.qa.executor import Context, Search, degenerate_steps
+    from refspatial_gen.qa.ops.common import generic
 
     cfg = default_config()
     checked = bad = 0
@@ -192,8 +220,9 @@ def test_replay_with_compiled_steps_matches_interpreter(scenes, monkeypatch):
                 ctx = Context(idx, np.random.default_rng(1))
                 for env in list(Search(t, ctx, 300).instances())[:15]:
                     fast = degenerate_steps(t, env, ctx)
-                    interpreted = dataclasses.replace(t, program=dataclasses.replace(
-                        t.program, fns=tuple(generic(st) for st in t.steps)))
+                    interpreted = dataclasses.replace(
+                        t, program=dataclasses.replace(t.program, fns=tuple(generic(st) for st in t.steps))
+                    )
                     slow = degenerate_steps(interpreted, env, ctx)
                     assert fast == slow, (t.name, env)
                     assert fast == _degenerate_by_full_replay(t, env, ctx), (t.name, env)  # the skipped replays
@@ -302,7 +331,7 @@ def test_between_shortcut_only_skips_searches_that_cannot_succeed(scenes):
         assert idx.largest_between_row == max(len(r) for r in rows)
         for t in templates:
             if idx.largest_between_row < t.program.needs.between:
-                assert not list(Search(t, Context(idx, np.random.default_rng(0)), 10 ** 6).instances()), t.name
+                assert not list(Search(t, Context(idx, np.random.default_rng(0)), 10**6).instances()), t.name
                 skipped += 1
             else:
                 searched += 1

@@ -53,22 +53,30 @@ def scenes():
 
 
 def _answer(env, t):
-    return env[t.steps[-2].name] if not isinstance(env[t.steps[-2].name], frozenset) else next(iter(env[t.steps[-2].name]))
+    return (
+        env[t.steps[-2].name] if not isinstance(env[t.steps[-2].name], frozenset) else next(iter(env[t.steps[-2].name]))
+    )
 
 
 def test_pruned_search_finds_exactly_the_acceptable_instances(scenes):
     ts = _templates()
     compared = dropped = 0
-    for name in ("identify/two_conditions", "identify/between_and_relation", "locate/relation",
-                 "locate/relation_closest", "locate/between", "locate/superlative"):
+    for name in (
+        "identify/two_conditions",
+        "identify/between_and_relation",
+        "locate/relation",
+        "locate/relation_closest",
+        "locate/between",
+        "locate/superlative",
+    ):
         t = ts[name]
         for f, g in scenes:
             idx = SceneIndex(f, g)
             ids = sorted(idx.answer_points)
             allowed = frozenset(ids[::2])  # half of the objects are acceptable answers
-            full = Search(t, Context(idx, np.random.default_rng(7)), 10 ** 7)
+            full = Search(t, Context(idx, np.random.default_rng(7)), 10**7)
             want = [e for e in full.instances() if _answer(e, t) in allowed]
-            pruned = Search(t, Context(idx, np.random.default_rng(7)), 10 ** 7, answers=allowed)
+            pruned = Search(t, Context(idx, np.random.default_rng(7)), 10**7, answers=allowed)
             got = [e for e in pruned.instances() if _answer(e, t) in allowed]  # the caller's own check stays
             assert got == want, (name, f.frame_id)
             compared += len(want)
@@ -82,7 +90,7 @@ def test_sample_rng_is_reproducible_and_covers_its_range():
     assert seq_a == [b.integers(7) for _ in range(2000)]
     counts = np.bincount(seq_a, minlength=7)
     assert set(seq_a) == set(range(7)) and counts.min() > 200  # roughly uniform (expected 286 each)
-    assert SampleRng(np.random.default_rng(6)).integers(10 ** 9) != SampleRng(np.random.default_rng(5)).integers(10 ** 9)
+    assert SampleRng(np.random.default_rng(6)).integers(10**9) != SampleRng(np.random.default_rng(5)).integers(10**9)
     for n in (1, 2, 5, 9):
         p = a.permutation(n)
         assert sorted(p) == list(range(n))

@@ -58,9 +58,22 @@ def test_relation_ids_come_from_the_registry() -> None:
         if REGISTRY[rid].qa:
             assert lexicon.RELATION_FORMS.get(rid, {}).get("prep"), rid
     assert set(lexicon.RELATION_FORMS) <= set(REGISTRY.names())
-    assert set(ids_by_use("ordered")) == {"left", "right", "front", "behind", "above_world", "below_world",
-                                          "above_image", "below_image", "tall", "short", "big", "small", "wide",
-                                          "thin"}
+    assert set(ids_by_use("ordered")) == {
+        "left",
+        "right",
+        "front",
+        "behind",
+        "above_world",
+        "below_world",
+        "above_image",
+        "below_image",
+        "tall",
+        "short",
+        "big",
+        "small",
+        "wide",
+        "thin",
+    }
     assert set(ids_by_use("anchored")) == {"close", "far"}
     assert set(allowed_relations(OPS["relate"])) == set(ids_by_use("ordered") + ids_by_use("pairwise"))
 
@@ -88,8 +101,11 @@ def test_default_relation_choices_do_not_depend_on_the_hash_seed(tmp_path: Path)
     outs = set()
     for seed in ("1", "2", "3"):
         env = {**os.environ, "PYTHONHASHSEED": seed, "PYTHONPATH": str(ROOT)}
-        outs.add(subprocess.run([sys.executable, "-c", code], env=env, cwd=ROOT, capture_output=True, text=True,
-                                check=True).stdout)
+        outs.add(
+            subprocess.run(
+                [sys.executable, "-c", code], env=env, cwd=ROOT, capture_output=True, text=True, check=True
+            ).stdout
+        )
     assert len(outs) == 1, outs
 
 
@@ -109,8 +125,13 @@ def _imports(path: Path) -> set[str]:
             out.add(node.module.split(".")[1])
         elif isinstance(node, ast.Import):
             out |= {a.name.split(".")[1] for a in node.names if a.name.startswith("refspatial_gen.")}
-        elif isinstance(node, ast.Call) and getattr(node.func, "attr", "") == "import_module" and node.args \
-                and isinstance(node.args[0], ast.Constant) and str(node.args[0].value).startswith("refspatial_gen."):
+        elif (
+            isinstance(node, ast.Call)
+            and getattr(node.func, "attr", "") == "import_module"
+            and node.args
+            and isinstance(node.args[0], ast.Constant)
+            and str(node.args[0].value).startswith("refspatial_gen.")
+        ):
             out.add(str(node.args[0].value).split(".")[1])  # a hidden import counts like any other
     return out
 

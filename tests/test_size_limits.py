@@ -60,8 +60,11 @@ def test_allow_list_names_only_current_offenders() -> None:
             if len(src.splitlines()) <= MAX_MODULE_LINES:
                 stale.append(key)
             continue
-        lengths = [(n.end_lineno or n.lineno) - n.lineno + 1 for n in ast.walk(ast.parse(src))
-                   if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)) and n.name == fn]
+        lengths = [
+            (n.end_lineno or n.lineno) - n.lineno + 1
+            for n in ast.walk(ast.parse(src))
+            if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)) and n.name == fn
+        ]
         if not lengths or max(lengths) <= MAX_FUNCTION_LINES:
             stale.append(key)
     assert not stale, stale

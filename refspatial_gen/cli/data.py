@@ -9,7 +9,9 @@ from pathlib import Path
 
 
 def register(sub) -> None:
-    p = sub.add_parser("export", help="export a shard directory to the RefSpatial layout, WebDataset tars or JSON lines")
+    p = sub.add_parser(
+        "export", help="export a shard directory to the RefSpatial layout, WebDataset tars or JSON lines"
+    )
     p.add_argument("dir", help="shard directory (with index.json)")
     p.add_argument("--format", required=True, choices=["refspatial", "webdataset", "jsonl"])
     p.add_argument("--out", required=True, help="output directory")
@@ -70,18 +72,31 @@ def cmd_inspect(args) -> int:
             fam.update(q["family"] for q in m["qa"])
             steps.update(int(q["steps"]) for q in m["qa"])
             if args.json:
-                print(json.dumps({"sample_id": m["sample_id"], "unit_key": m["unit_key"], "views": len(m["frames"]),
-                                  "objects": [len(f["objects"]) for f in m["frames"]], "qa_pairs": len(m["qa"]),
-                                  "families": dict(sorted(Counter(q["family"] for q in m["qa"]).items()))},
-                                 sort_keys=True))
+                print(
+                    json.dumps(
+                        {
+                            "sample_id": m["sample_id"],
+                            "unit_key": m["unit_key"],
+                            "views": len(m["frames"]),
+                            "objects": [len(f["objects"]) for f in m["frames"]],
+                            "qa_pairs": len(m["qa"]),
+                            "families": dict(sorted(Counter(q["family"] for q in m["qa"]).items())),
+                        },
+                        sort_keys=True,
+                    )
+                )
             elif n <= args.limit:
                 f0 = m["frames"][0]
                 cats = Counter(o["category"] for o in f0["objects"])
-                lines.append(f"  [{raw.seq}] {m['sample_id']}  source={f0['source']}  views={len(m['frames'])}  "
-                             f"{f0['camera']['width']}x{f0['camera']['height']}  objects={len(f0['objects'])} "
-                             f"({', '.join(f'{k}={v}' for k, v in sorted(cats.items()))})  qa={len(m['qa'])}")
+                lines.append(
+                    f"  [{raw.seq}] {m['sample_id']}  source={f0['source']}  views={len(m['frames'])}  "
+                    f"{f0['camera']['width']}x{f0['camera']['height']}  objects={len(f0['objects'])} "
+                    f"({', '.join(f'{k}={v}' for k, v in sorted(cats.items()))})  qa={len(m['qa'])}"
+                )
                 for q in m["qa"][:2]:
-                    lines.append(f"      {q['family']}/{q['steps']} steps: {q['question'][:90]!r} -> {q['answer'][:40]!r}")
+                    lines.append(
+                        f"      {q['family']}/{q['steps']} steps: {q['question'][:90]!r} -> {q['answer'][:40]!r}"
+                    )
     except ShardError as e:
         return _fail(str(e))
     if not args.json:

@@ -9,10 +9,13 @@ from pathlib import Path
 
 
 def register(sub) -> None:
-    p = sub.add_parser("shards", help="generate a dataset from a recipe (resumes an interrupted run)",
-                       description="Generate shards from a recipe. Running it again on the same --out resumes: "
-                                   "finished shards are verified by hash and kept, unfinished ones are redone. "
-                                   "`shards salvage FILE` recovers the complete samples of an unfinished shard.")
+    p = sub.add_parser(
+        "shards",
+        help="generate a dataset from a recipe (resumes an interrupted run)",
+        description="Generate shards from a recipe. Running it again on the same --out resumes: "
+        "finished shards are verified by hash and kept, unfinished ones are redone. "
+        "`shards salvage FILE` recovers the complete samples of an unfinished shard.",
+    )
     p.add_argument("action", nargs="?", choices=["run", "salvage"], default="run")
     p.add_argument("paths", nargs="*", help="with `salvage`: unfinished shard files (*.partial)")
     p.add_argument("--recipe", default="recipes/default.yaml")
@@ -43,10 +46,23 @@ def cmd_shards(args) -> int:
 
     recipe = load_recipe(args.recipe, seed=args.seed, scenes=args.scenes, input_path=args.input)
     out = Path(args.out or f"out/shards/{recipe.name}")
-    ref = RecipeRef(str(Path(args.recipe).resolve()), args.seed, args.scenes,
-                    None if args.input is None else str(Path(args.input).resolve()))
-    result = run_plan(recipe, ref, out, workers=args.workers, executor=args.executor, ray_address=args.ray_address,
-                      strict=args.strict, fresh=args.fresh, progress=not args.quiet)
+    ref = RecipeRef(
+        str(Path(args.recipe).resolve()),
+        args.seed,
+        args.scenes,
+        None if args.input is None else str(Path(args.input).resolve()),
+    )
+    result = run_plan(
+        recipe,
+        ref,
+        out,
+        workers=args.workers,
+        executor=args.executor,
+        ray_address=args.ray_address,
+        strict=args.strict,
+        fresh=args.fresh,
+        progress=not args.quiet,
+    )
     st, log = result["stats"], result["run_log"]
     if not args.no_report:
         from refspatial_gen.run.report import write_report
@@ -54,12 +70,16 @@ def cmd_shards(args) -> int:
         report = write_report(out, st, log, {k: v for k, v in result["index"].items() if k not in ("shards", "stats")})
         print(f"report: {report}")
     dropped = sum(st["dropped"].values())
-    print(f"{out}: {st['samples']} samples, {st['qa_pairs']} QA pairs in {len(result['index']['shards'])} shards; "
-          f"{dropped} of {st['units']} units dropped {st['dropped'] or ''}; "
-          f"{log['wall_seconds']:.1f} s, {log['qa_per_s']:.1f} QA/s")
+    print(
+        f"{out}: {st['samples']} samples, {st['qa_pairs']} QA pairs in {len(result['index']['shards'])} shards; "
+        f"{dropped} of {st['units']} units dropped {st['dropped'] or ''}; "
+        f"{log['wall_seconds']:.1f} s, {log['qa_per_s']:.1f} QA/s"
+    )
     if log["errors"]:
-        print(f"warning: {len(log['errors'])} units failed with internal errors; tracebacks in {out / 'run_log.json'}",
-              file=sys.stderr)
+        print(
+            f"warning: {len(log['errors'])} units failed with internal errors; tracebacks in {out / 'run_log.json'}",
+            file=sys.stderr,
+        )
     return 0
 
 
@@ -93,8 +113,10 @@ def cmd_stats(args) -> int:
     if args.json:
         print(json.dumps(out, indent=2, sort_keys=True))
         return 0
-    print(f"{args.dir}: {out['samples']} samples, {out['qa_pairs']} QA pairs, {out['shards']} shards, "
-          f"{sum(out['dropped'].values())} of {out['units']} units dropped")
+    print(
+        f"{args.dir}: {out['samples']} samples, {out['qa_pairs']} QA pairs, {out['shards']} shards, "
+        f"{sum(out['dropped'].values())} of {out['units']} units dropped"
+    )
     for key in ("by_family", "by_steps", "by_source", "by_relation", "dropped", "truth"):
         items = sorted(out[key].items(), key=lambda kv: (-kv[1], kv[0]))
         print(f"  {key}: " + ", ".join(f"{k}={v}" for k, v in items))

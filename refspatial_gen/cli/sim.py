@@ -10,7 +10,6 @@ from typing import Any
 
 import numpy as np
 
-
 DEFAULT_RECIPE = Path(__file__).resolve().parents[2] / "recipes" / "default.yaml"
 
 
@@ -51,10 +50,21 @@ def cmd_assets_list(args: argparse.Namespace) -> int:
     cat = load_catalog(args.catalog or None)
     rows = []
     for n, c in cat.categories.items():
-        rows.append({"name": n, "label": c.label, "builder": c.builder, "scale": c.scale,
-                     "dims": {k: list(v) for k, v in c.dims.items()}, "colors": list(c.colors), "materials": list(c.materials),
-                     "front": None if c.front is None else list(c.front), "front_phrase": c.front_phrase,
-                     "fits_inside": c.fits_inside, "available": c.builder != "external" or external_available(c)})
+        rows.append(
+            {
+                "name": n,
+                "label": c.label,
+                "builder": c.builder,
+                "scale": c.scale,
+                "dims": {k: list(v) for k, v in c.dims.items()},
+                "colors": list(c.colors),
+                "materials": list(c.materials),
+                "front": None if c.front is None else list(c.front),
+                "front_phrase": c.front_phrase,
+                "fits_inside": c.fits_inside,
+                "available": c.builder != "external" or external_available(c),
+            }
+        )
     if args.json:
         print(json.dumps({"catalog": cat.path, "categories": rows}, indent=1, sort_keys=True))
         return 0
@@ -106,8 +116,11 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     ssub = s.add_subparsers(dest="sim_command", required=True)
 
     def common(p: argparse.ArgumentParser) -> None:
-        p.add_argument("--recipe", default=str(DEFAULT_RECIPE),
-                       help="the run whose scenes to show: its sim source config, seed and unit seeding")
+        p.add_argument(
+            "--recipe",
+            default=str(DEFAULT_RECIPE),
+            help="the run whose scenes to show: its sim source config, seed and unit seeding",
+        )
         p.add_argument("--seed", type=int, default=None, help="run seed (default: the recipe's)")
         p.add_argument("--catalog", default="")
         p.add_argument("--layout", choices=["tabletop", "room"], default=None)

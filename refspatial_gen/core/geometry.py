@@ -33,7 +33,7 @@ class Box3D:
             raise ValueError(f"Box3D with negative size {self.size.tolist()}")
 
     @classmethod
-    def from_yaw(cls, center, size, yaw: float = 0.0) -> "Box3D":
+    def from_yaw(cls, center, size, yaw: float = 0.0) -> Box3D:
         return cls(np.asarray(center, float), np.asarray(size, float), rot_z(yaw))
 
     @property
@@ -112,7 +112,7 @@ class Box3D:
         }
 
     @classmethod
-    def from_json(cls, d: dict) -> "Box3D":
+    def from_json(cls, d: dict) -> Box3D:
         return cls(np.array(d["center"]), np.array(d["size"]), np.array(d["rotation"]))
 
 

@@ -14,7 +14,7 @@ class RLE:
     counts: tuple[int, ...]
 
     @classmethod
-    def encode(cls, mask: np.ndarray) -> "RLE":
+    def encode(cls, mask: np.ndarray) -> RLE:
         m = np.asarray(mask, dtype=bool)
         flat = m.ravel(order="F").astype(np.int8)
         if flat.size == 0:
@@ -43,7 +43,7 @@ class RLE:
         return {"size": [self.height, self.width], "counts": list(self.counts)}
 
     @classmethod
-    def from_json(cls, d: dict) -> "RLE":
+    def from_json(cls, d: dict) -> RLE:
         return cls(int(d["size"][0]), int(d["size"][1]), tuple(int(c) for c in d["counts"]))
 
 

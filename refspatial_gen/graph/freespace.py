@@ -30,7 +30,7 @@ OBSTACLE_HEIGHT = 0.005  # an object reaching this far above the surface blocks 
 MAX_BETWEEN_GAP = {"tabletop": 0.6, "room": 3.0}
 MIN_BETWEEN_GAP_FACTOR = 2.0
 BETWEEN_NEIGHBOURS = 3  # "between" regions for each anchor and its nearest neighbours only
-SIMPLIFY = 0.003  # m, stored outlines are simplified by this much (the checker uses the stored outline)  # the gap must exceed this many clearances
+SIMPLIFY = 0.003  # m, stored outlines are simplified by this much (the checker uses the stored outline)
 
 
 # ----------------------------------------------------------------------------- shared geometry
@@ -69,9 +69,14 @@ def obstacle_footprints(frame: Frame, G: np.ndarray, z: float, gap: float) -> li
     return out
 
 
-def check_free_point(frame: Frame, graph: SceneGraph, region: FreeSpaceRegion,
-                     point: tuple[float, float] | None = None, obstacles: list[np.ndarray] | None = None,
-                     surface_outline: np.ndarray | None = None) -> list[str]:
+def check_free_point(
+    frame: Frame,
+    graph: SceneGraph,
+    region: FreeSpaceRegion,
+    point: tuple[float, float] | None = None,
+    obstacles: list[np.ndarray] | None = None,
+    surface_outline: np.ndarray | None = None,
+) -> list[str]:
     """Problems with a free-space answer point (the region's own point by default); [] means valid.
 
     Checks: inside the image; the pixel's ray meets the surface plane in front of the camera; the hit
@@ -128,13 +133,18 @@ def _view_polygon(geom: SceneGeom, z: float) -> Polygon | None:
     if "_view_rays" not in geom.cache:  # the border rays do not depend on the plane: one set per frame
         W, H = geom.W, geom.H
         k = 12
-        border = ([(x, 0) for x in np.linspace(0, W - 1, k)] + [(W - 1, y) for y in np.linspace(0, H - 1, k)]
-                  + [(x, H - 1) for x in np.linspace(W - 1, 0, k)] + [(0, y) for y in np.linspace(H - 1, 0, k)])
+        border = (
+            [(x, 0) for x in np.linspace(0, W - 1, k)]
+            + [(W - 1, y) for y in np.linspace(0, H - 1, k)]
+            + [(x, H - 1) for x in np.linspace(W - 1, 0, k)]
+            + [(0, y) for y in np.linspace(H - 1, 0, k)]
+        )
         cam, G = geom.frame.camera, geom.gravity.rotation
         R, o = G @ cam.world_from_cam[:3, :3], G @ cam.world_from_cam[:3, 3]
         # one matrix-vector product per pixel, as pixel_to_plane does, so the hull matches its rays bit for bit
-        rays = np.array([R @ np.array([(x + 0.5 - cam.cx) / cam.fx, (y + 0.5 - cam.cy) / cam.fy, 1.0])
-                         for x, y in border])
+        rays = np.array(
+            [R @ np.array([(x + 0.5 - cam.cx) / cam.fx, (y + 0.5 - cam.cy) / cam.fy, 1.0]) for x, y in border]
+        )
         geom.cache["_view_rays"] = (o, rays)
     o, d = geom.cache["_view_rays"]
     ok = np.abs(d[:, 2]) >= 1e-12
@@ -211,8 +221,18 @@ def _visible_samples(geom: SceneGeom, poly: Polygon, z: float, min_area: float =
     return pts[ok], step
 
 
-def _region(geom: SceneGeom, graph_stub: SceneGraph, sid: str, kind: str, anchors: tuple, poly: Polygon,
-            z: float, label: str, obstacles: list[np.ndarray], outline: np.ndarray) -> FreeSpaceRegion | None:
+def _region(
+    geom: SceneGeom,
+    graph_stub: SceneGraph,
+    sid: str,
+    kind: str,
+    anchors: tuple,
+    poly: Polygon,
+    z: float,
+    label: str,
+    obstacles: list[np.ndarray],
+    outline: np.ndarray,
+) -> FreeSpaceRegion | None:
     poly = poly.simplify(SIMPLIFY, preserve_topology=True)
     if not isinstance(poly, Polygon) or poly.is_empty:
         return None
@@ -234,8 +254,9 @@ def _region(geom: SceneGeom, graph_stub: SceneGraph, sid: str, kind: str, anchor
         hit = pixel_to_plane(geom.frame, G, px, py, z)
         if hit is None:
             continue
-        r = FreeSpaceRegion(sid, kind, tuple(anchors), poly_xy, z, round(area, 6),
-                            (float(hit[0]), float(hit[1]), float(z)), p, label)
+        r = FreeSpaceRegion(
+            sid, kind, tuple(anchors), poly_xy, z, round(area, 6), (float(hit[0]), float(hit[1]), float(z)), p, label
+        )
         if not check_free_point(geom.frame, graph_stub, r, obstacles=obstacles, surface_outline=outline):
             return r
     return None
@@ -265,8 +286,9 @@ def _build(geom: SceneGeom) -> list[FreeSpaceRegion]:
     return out
 
 
-def _surface_regions(geom: SceneGeom, s: Any, supports: Any, lab: dict[str, Any], stub: SceneGraph
-                     ) -> list[FreeSpaceRegion]:
+def _surface_regions(
+    geom: SceneGeom, s: Any, supports: Any, lab: dict[str, Any], stub: SceneGraph
+) -> list[FreeSpaceRegion]:
     """The free regions of one support surface: beside each object standing on it (left/right/front/behind),
     between neighbouring objects, and in its labelled corners and along its labelled edges."""
     th = geom.th
@@ -277,7 +299,11 @@ def _surface_regions(geom: SceneGeom, s: Any, supports: Any, lab: dict[str, Any]
         return []
     obst_fp = _obstacles(geom, z, th.support_gap)
     outline = surface_polygon(s.box)
-    obst = list(shapely.buffer(shapely.polygons(np.asarray(obst_fp, float)), th.free_clearance, join_style="mitre")) if obst_fp else []
+    obst = (
+        list(shapely.buffer(shapely.polygons(np.asarray(obst_fp, float)), th.free_clearance, join_style="mitre"))
+        if obst_fp
+        else []
+    )
     free = surf.intersection(view)
     if obst:
         free = free.difference(unary_union(obst))
@@ -292,8 +318,11 @@ def _surface_regions(geom: SceneGeom, s: Any, supports: Any, lab: dict[str, Any]
             if r is not None:
                 out.append(r)
 
-    on_s = [i for i in np.argsort(geom.ids, kind="stable")
-            if supports[i] is not None and supports[i].kind == "surface" and supports[i].ref == s.id]
+    on_s = [
+        i
+        for i in np.argsort(geom.ids, kind="stable")
+        if supports[i] is not None and supports[i].kind == "surface" and supports[i].ref == s.id
+    ]
     axes = geom.camera_axes_horizontal()
     if axes is not None:
         right, fwd = axes
@@ -333,7 +362,10 @@ def _between_pairs(geom: SceneGeom, on_s: list[Any]) -> list[tuple[int, int]]:
     out = []
     for i, j in sorted(pairs, key=lambda p: (int(geom.ids[p[0]]), int(geom.ids[p[1]]))):
         gapd = geom.surface_distance[i, j]
-        if gapd < MIN_BETWEEN_GAP_FACTOR * th.free_clearance * 2 or gapd > MAX_BETWEEN_GAP[geom.cache.get("scale", "tabletop")]:
+        if (
+            gapd < MIN_BETWEEN_GAP_FACTOR * th.free_clearance * 2
+            or gapd > MAX_BETWEEN_GAP[geom.cache.get("scale", "tabletop")]
+        ):
             continue
         out.append((i, j))
     return out

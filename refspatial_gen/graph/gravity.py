@@ -82,7 +82,10 @@ def fit_up_from_depth(frame: Frame, seed: int = 0) -> tuple[np.ndarray | None, d
         pcd = pcd.select_by_index(inl, invert=True)
     if best is None:
         return None, {"reason": "no_horizontal_plane"}
-    return best[0], {"inlier_share": round(float(best[1]), 4), "tilt_from_camera_up_deg": round(float(np.rad2deg(best[2])), 2)}
+    return best[0], {
+        "inlier_share": round(float(best[1]), 4),
+        "tilt_from_camera_up_deg": round(float(np.rad2deg(best[2])), 2),
+    }
 
 
 def resolve_gravity(frame: Frame, fit_plane: bool = True) -> Gravity:

@@ -20,9 +20,14 @@ from refspatial_gen.core.geometry import Box3D, box_distance
 from refspatial_gen.core.model import Frame, SceneGraph
 
 SUPERLATIVES = {  # word -> (feature, pick the largest?)
-    "tallest": ("height", True), "shortest": ("height", False), "biggest": ("volume", True),
-    "smallest": ("volume", False), "leftmost": ("img_x", False), "rightmost": ("img_x", True),
-    "nearest": ("near", False), "farthest": ("near", True),
+    "tallest": ("height", True),
+    "shortest": ("height", False),
+    "biggest": ("volume", True),
+    "smallest": ("volume", False),
+    "leftmost": ("img_x", False),
+    "rightmost": ("img_x", True),
+    "nearest": ("near", False),
+    "farthest": ("near", True),
 }
 ORDINALS = {"second": 2, "third": 3}
 _REL = re.compile(r"^(?P<base>.+?) (?P<rel>closest to|farthest from|on) (?P<anchor>the .+)$")
@@ -47,10 +52,15 @@ def _norm(cat: str) -> str:
 
 
 def _tolerances(th: dict) -> dict[str, float]:
-    return {"img_x": th["image_margin"] / 4, "near": th["depth_margin"] / 2,
-            "height_abs": th["height_margin_abs"] / 2, "height_rel": th["size_margin_rel"] / 2,
-            "volume_rel": th["volume_margin_rel"] / 2, "dist": th["anchor_distance_margin"] / 2,
-            "support_gap": th["support_gap"]}
+    return {
+        "img_x": th["image_margin"] / 4,
+        "near": th["depth_margin"] / 2,
+        "height_abs": th["height_margin_abs"] / 2,
+        "height_rel": th["size_margin_rel"] / 2,
+        "volume_rel": th["volume_margin_rel"] / 2,
+        "dist": th["anchor_distance_margin"] / 2,
+        "support_gap": th["support_gap"],
+    }
 
 
 def _from_frame(frame: Frame) -> _Scene:
@@ -75,9 +85,12 @@ def _from_frame(frame: Frame) -> _Scene:
             img_x.append((uv[0, 0] + 0.5) / cam.width)
             cols.append(None)
         near.append(cam.world_to_cam(o.box.corners())[:, 2].min())
-    feats = {"img_x": np.array(img_x), "near": np.array(near),
-             "height": np.array([b.aabb()[1][2] - b.aabb()[0][2] for b in boxes]),
-             "volume": np.array([float(np.prod(b.size)) for b in boxes])}
+    feats = {
+        "img_x": np.array(img_x),
+        "near": np.array(near),
+        "height": np.array([b.aabb()[1][2] - b.aabb()[0][2] for b in boxes]),
+        "volume": np.array([float(np.prod(b.size)) for b in boxes]),
+    }
     surfaces = {}
     for s in frame.surfaces:
         sb = Box3D(G @ s.box.center, s.box.size, G @ s.box.rotation)
@@ -95,12 +108,23 @@ def _from_frame(frame: Frame) -> _Scene:
         else:
             top, sbox = surfaces[anchor[1]]
         probe = np.array([[c[0], c[1], sbox.center[2]]])
-        inside_xy = bool(np.all(np.abs(sbox.to_local(probe)[0, :2]) <= sbox.size[:2] / 2 + 1e-9)) if abs(sbox.rotation[2, 2]) > 0.99 \
+        inside_xy = (
+            bool(np.all(np.abs(sbox.to_local(probe)[0, :2]) <= sbox.size[:2] / 2 + 1e-9))
+            if abs(sbox.rotation[2, 2]) > 0.99
             else bool(sbox.contains(probe)[0])
+        )
         return abs(bottom - top) <= th["support_gap"] and inside_xy
 
-    return _Scene([o.id for o in frame.objects], [_norm(o.category) for o in frame.objects], cols, feats,
-                  _tolerances(th), surfaces, dist, on)
+    return _Scene(
+        [o.id for o in frame.objects],
+        [_norm(o.category) for o in frame.objects],
+        cols,
+        feats,
+        _tolerances(th),
+        surfaces,
+        dist,
+        on,
+    )
 
 
 def _from_graph(graph: SceneGraph) -> _Scene:
@@ -109,8 +133,12 @@ def _from_graph(graph: SceneGraph) -> _Scene:
     ids = [n.object_id for n in nodes]
     pos = {k: i for i, k in enumerate(ids)}
     a = [n.attributes for n in nodes]
-    feats = {"img_x": np.array([x["img_xy"][0] for x in a]), "near": np.array([x["near_depth"] for x in a]),
-             "height": np.array([x["height"] for x in a]), "volume": np.array([x["volume"] for x in a])}
+    feats = {
+        "img_x": np.array([x["img_xy"][0] for x in a]),
+        "near": np.array([x["near_depth"] for x in a]),
+        "height": np.array([x["height"] for x in a]),
+        "volume": np.array([x["volume"] for x in a]),
+    }
     d = {}
     for f in graph.facts:
         if f.relation == "distance":
@@ -125,8 +153,16 @@ def _from_graph(graph: SceneGraph) -> _Scene:
             return s == f"obj:{ids[anchor[1]]}"
         return s is not None and s == by_name.get(anchor[1])
 
-    return _Scene(ids, [_norm(n.category) for n in nodes], [x.get("color") for x in a], feats, _tolerances(th),
-                  {name: (0.0, None) for name in by_name}, lambda i, j: d.get((i, j), np.inf), on)
+    return _Scene(
+        ids,
+        [_norm(n.category) for n in nodes],
+        [x.get("color") for x in a],
+        feats,
+        _tolerances(th),
+        {name: (0.0, None) for name in by_name},
+        lambda i, j: d.get((i, j), np.inf),
+        on,
+    )
 
 
 def _base(sc: _Scene, text: str) -> list[int] | None:

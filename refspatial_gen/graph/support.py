@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from refspatial_gen.graph.scene import SceneGeom, points_in_polygons, ccw
+from refspatial_gen.graph.scene import SceneGeom, ccw, points_in_polygons
 
 
 @dataclass(frozen=True)

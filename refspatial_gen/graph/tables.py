@@ -115,8 +115,11 @@ class RelationTables:
         return self._dist_rows
 
     def regions(self, kind: str | None = None, anchors: tuple[Any, ...] | None = None) -> list[FreeSpaceRegion]:
-        return [r for r in self.graph.free_space
-                if (kind is None or r.kind == kind) and (anchors is None or tuple(r.anchors) == tuple(anchors))]
+        return [
+            r
+            for r in self.graph.free_space
+            if (kind is None or r.kind == kind) and (anchors is None or tuple(r.anchors) == tuple(anchors))
+        ]
 
     def shared(self, key: str, build: Any) -> Any:
         """A computation several relations share (sizes compare all three quantities at once), kept."""
@@ -187,6 +190,7 @@ class RelationTables:
         t = self._tables.get(relation, _UNSET)
         if t is _UNSET:
             rel = REGISTRY[relation]
-            t = self._tables[relation] = None if rel.table is None or (rel.gated and not self.world) \
-                else rel.table(self)
+            t = self._tables[relation] = (
+                None if rel.table is None or (rel.gated and not self.world) else rel.table(self)
+            )
         return t

@@ -10,7 +10,7 @@ What each step does is its op's business (qa/ops/); this module only walks progr
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from itertools import product
 from typing import Any
 
@@ -23,8 +23,20 @@ from refspatial_gen.qa.program import Step, StepFn, Template
 from refspatial_gen.qa.sample_rng import SampleRng
 from refspatial_gen.qa.values import Context, NumberValue, OptionValue, PointValue
 
-__all__ = ["Context", "NumberValue", "OptionValue", "PointValue", "Search", "answer_chain", "answer_key",
-           "compile_step", "degenerate_steps", "replay", "run_step", "slot_candidates"]
+__all__ = [
+    "Context",
+    "NumberValue",
+    "OptionValue",
+    "PointValue",
+    "Search",
+    "answer_chain",
+    "answer_key",
+    "compile_step",
+    "degenerate_steps",
+    "replay",
+    "run_step",
+    "slot_candidates",
+]
 
 
 def run_step(st: Step, env: dict[str, Any], prev: Any, ctx: Context) -> Any:
@@ -85,8 +97,11 @@ def slot_candidates(t: Template, name: str, env: dict[str, Any], ctx: Context) -
     if s.type == "color":
         return [c for c in idx.colors if not s.choices or c in s.choices]
     if s.type == "surface":
-        return [k for k in sorted(idx.surfaces) if (not s.choices or k in s.choices)
-                and any(k in v for v in idx.on.values())]
+        return [
+            k
+            for k in sorted(idx.surfaces)
+            if (not s.choices or k in s.choices) and any(k in v for v in idx.on.values())
+        ]
     if s.type == "spot":
         kinds = s.kinds or REGION_KINDS
         return [sp for sp in idx.spots if sp[0] in kinds]
@@ -94,7 +109,6 @@ def slot_candidates(t: Template, name: str, env: dict[str, Any], ctx: Context) -
         kinds = s.kinds or REGION_KINDS
         return [r for r in idx.region_list if r.kind in kinds and r.label]
     return []
-
 
 
 class Search:
@@ -138,6 +152,7 @@ class Search:
 
         def collect(env: dict) -> None:
             found.append(dict(env))
+
         self.first(collect)
         return iter(found)
 
@@ -219,8 +234,7 @@ class Search:
         return None
 
 
-def replay(t: Template, env: dict[str, Any], ctx: Context, drop: int | None = None,
-           reuse_prefix: bool = True) -> Any:
+def replay(t: Template, env: dict[str, Any], ctx: Context, drop: int | None = None, reuse_prefix: bool = True) -> Any:
     """Re-run the program with the slots of `env`, optionally with step `drop` removed; returns the answer.
 
     A removed step gives its op's `dropped` value (a set-narrowing step passes its input through; a
@@ -272,7 +286,6 @@ def answer_key(v: Any) -> Any:
     return ("value", v)
 
 
-
 def degenerate_steps(t: Template, env: dict[str, Any], ctx: Context) -> list[int]:
     """Indices of counted steps whose removal leaves the answer unchanged (empty = the question is sound)."""
     full = answer_key(env[t.steps[-1].name])
@@ -286,8 +299,13 @@ def degenerate_steps(t: Template, env: dict[str, Any], ctx: Context) -> list[int
         k = st.index
         if k + 1 == len(steps) and impl.drop_to == "none":
             continue  # dropping the yes/no step that is the answer leaves no answer at all (replay: "empty")
-        if (impl.chain and k + 2 == len(steps) and steps[-1].impl.locates and "of" not in steps[-1].args
-                and st.args.get("in") is None):
+        if (
+            impl.chain
+            and k + 2 == len(steps)
+            and steps[-1].impl.locates
+            and "of" not in steps[-1].args
+            and st.args.get("in") is None
+        ):
             # dropping the step that feeds the final locate (a set step, superlative or ordinal) hands locate
             # this step's input set; unless that set is a single object the replay has no answer (not_unique),
             # so it cannot be degenerate

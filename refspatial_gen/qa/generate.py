@@ -32,14 +32,14 @@ class _IndexCache:
     anything here, because each index refers to its own graph (memory grew ~6 MB per scene in a worker)."""
 
     def __init__(self, size: int = 8) -> None:
-        self._d: "OrderedDict[int, tuple[SceneGraph, SceneIndex]]" = OrderedDict()
+        self._d: OrderedDict[int, tuple[SceneGraph, SceneIndex]] = OrderedDict()
         self.size = size
 
-    def get(self, graph: SceneGraph) -> "SceneIndex | None":
+    def get(self, graph: SceneGraph) -> SceneIndex | None:
         e = self._d.get(id(graph))
         return e[1] if e is not None and e[0] is graph else None
 
-    def __setitem__(self, graph: SceneGraph, idx: "SceneIndex") -> None:
+    def __setitem__(self, graph: SceneGraph, idx: SceneIndex) -> None:
         self._d[id(graph)] = (graph, idx)
         self._d.move_to_end(id(graph))
         while len(self._d) > self.size:
@@ -106,8 +106,13 @@ class Balancer:
             self.quadrants[self.quadrant(answer.point)] += 1
 
 
-def generate_qa(frames: list[Frame], graphs: list[SceneGraph], rng: np.random.Generator,
-                config: QAConfig, indexes: list[SceneIndex] | None = None) -> list[QAPair]:
+def generate_qa(
+    frames: list[Frame],
+    graphs: list[SceneGraph],
+    rng: np.random.Generator,
+    config: QAConfig,
+    indexes: list[SceneIndex] | None = None,
+) -> list[QAPair]:
     """Up to `config.max_per_sample` checked QA pairs for one sample (one frame or a multi-view group).
 
     The lookup indexes are built for this call and freed with it (a run uses each graph in one sample only;
@@ -116,18 +121,25 @@ def generate_qa(frames: list[Frame], graphs: list[SceneGraph], rng: np.random.Ge
     """
     if len(frames) != len(graphs):
         raise ValueError(f"{len(frames)} frames but {len(graphs)} graphs")
-    if indexes is not None and (len(indexes) != len(frames)
-                                or any(i.frame is not f or i.graph is not g for i, f, g in zip(indexes, frames, graphs))):
+    if indexes is not None and (
+        len(indexes) != len(frames)
+        or any(i.frame is not f or i.graph is not g for i, f, g in zip(indexes, frames, graphs))
+    ):
         raise ValueError("indexes must be the SceneIndex of each (frame, graph), in order")
     idxs = indexes or [SceneIndex(f, g) for f, g in zip(frames, graphs)]
     return _generate(frames, idxs, rng, config)
 
 
-def _generate(frames: list[Frame], idxs: list[SceneIndex], sample_rng: np.random.Generator,
-              config: QAConfig) -> list[QAPair]:
+def _generate(
+    frames: list[Frame], idxs: list[SceneIndex], sample_rng: np.random.Generator, config: QAConfig
+) -> list[QAPair]:
     rng = SampleRng(sample_rng)  # template QA draws from a fast generator seeded by the sample's
-    pairs = [(i, j) for i in range(len(frames)) for j in range(len(frames))
-             if i != j and frames[i].scene_id and frames[i].scene_id == frames[j].scene_id]
+    pairs = [
+        (i, j)
+        for i in range(len(frames))
+        for j in range(len(frames))
+        if i != j and frames[i].scene_id and frames[i].scene_id == frames[j].scene_id
+    ]
     bal = Balancer(config.point_slack)
     out: list[QAPair] = []
     seen: set = set()
@@ -172,6 +184,7 @@ def _generate(frames: list[Frame], idxs: list[SceneIndex], sample_rng: np.random
             mv_count += 1
     if config.point_depth:  # built-in camera-frame point/depth questions (work on frames without objects)
         from refspatial_gen.qa.pointdepth import point_depth_qa
+
         out += point_depth_qa(frames, sample_rng, min(config.point_depth, config.max_per_sample - len(out)), len(out))
     return out
 
@@ -191,8 +204,15 @@ def _family_choices(fam: Any, config: QAConfig, exhausted: set[int], multiview: 
         multi = [_is_multiview(t) for t in temps]
         weights = [t.weight * mix.get(t.n_steps, 1.0 if not mix else 0.0) for t in temps]
         single = [k for k, m in enumerate(multi) if not m]
-        plan = (fam, config, temps, weights, multi, frozenset(id(t) for t in temps),
-                ([temps[k] for k in single], [weights[k] for k in single]) if any(multi) else (temps, weights))
+        plan = (
+            fam,
+            config,
+            temps,
+            weights,
+            multi,
+            frozenset(id(t) for t in temps),
+            ([temps[k] for k in single], [weights[k] for k in single]) if any(multi) else (temps, weights),
+        )
         if len(_FAMILY_PLANS) > 256:
             _FAMILY_PLANS.clear()
         _FAMILY_PLANS[key] = plan
@@ -219,8 +239,18 @@ def _is_multiview(t: Template) -> bool:
     return t.program.needs.multiview
 
 
-def _instantiate(t: Template, ctx: Context, rng: SampleRng, config: QAConfig, bal: Balancer,
-                 seen: set, frame_ids: list[str], qa_id: str, flip: bool = False, view: int = 0) -> QAPair | None:
+def _instantiate(
+    t: Template,
+    ctx: Context,
+    rng: SampleRng,
+    config: QAConfig,
+    bal: Balancer,
+    seen: set,
+    frame_ids: list[str],
+    qa_id: str,
+    flip: bool = False,
+    view: int = 0,
+) -> QAPair | None:
     """One checked QA pair of template t on ctx's frame (`view`: that frame's position in the sample), or None."""
     needs = t.program.needs
     if needs.spot and not ctx.idx.has_true_spot:
@@ -262,6 +292,7 @@ def _instantiate(t: Template, ctx: Context, rng: SampleRng, config: QAConfig, ba
         seen.add(key)
         bal.add(env[last] if t.answer_type == BOOL else ans)
         return qa
+
     answers = bal.allowed_answers(idx) if any(t.program.answer_chain) else None
     return Search(t, ctx, config.budget, answers).first(accept)
 

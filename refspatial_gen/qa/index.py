@@ -81,9 +81,15 @@ class SceneIndex:
         self.regions: dict[tuple, FreeSpaceRegion] = {(r.kind, tuple(r.anchors)): r for r in reversed(self.region_list)}
         self.has_between_region = any(r.kind == "between" for r in self.region_list)
         labels = graph.meta.get("surfaces") or {}
-        self.spots: tuple[tuple[str, str, str], ...] = tuple(sorted(
-            (kind, sid, lab) for sid, e in labels.items() if sid in self.surfaces
-            for kind, key in (("corner", "corners"), ("edge", "edges")) for lab in e.get(key, [])))
+        self.spots: tuple[tuple[str, str, str], ...] = tuple(
+            sorted(
+                (kind, sid, lab)
+                for sid, e in labels.items()
+                if sid in self.surfaces
+                for kind, key in (("corner", "corners"), ("edge", "edges"))
+                for lab in e.get(key, [])
+            )
+        )
         self.tables = RelationTables(graph)  # relation truth: the graph's stored facts, by each relation's rules
         self.world = self.tables.world
         self._fact_cache: dict[tuple[str, tuple[Any, ...]], Fact | None] = {}
@@ -219,8 +225,15 @@ class SceneIndex:
         the anchor pair is looked up once and kept (the `between` op asks it for many sets)."""
         key = ("between", b, c)
         entry = self._rel_sets.get(key)
-        if entry is None and self.world and b != c and type(b) is int and type(c) is int \
-                and b in self.nodes and c in self.nodes:
+        if (
+            entry is None
+            and self.world
+            and b != c
+            and type(b) is int
+            and type(c) is int
+            and b in self.nodes
+            and c in self.nodes
+        ):
             table = self.tables.table("between")
             if table is not None:  # a fact for every other object: absent = False
                 t, u = table.row(b, c) if b < c else table.row(c, b)
@@ -317,7 +330,11 @@ class SceneIndex:
         hit = self._region_rounded.get(id(region))
         if hit is None or hit[0] is not region:
             poly = tuple((round(float(x), 5), round(float(y), 5)) for x, y in region.polygon_xy)
-            hit = self._region_rounded[id(region)] = (region, poly, tuple(round(float(x), 6) for x in region.point_world))
+            hit = self._region_rounded[id(region)] = (
+                region,
+                poly,
+                tuple(round(float(x), 6) for x in region.point_world),
+            )
         return hit[1], hit[2]
 
     def key_point(self, object_id: int) -> list[float]:

@@ -19,7 +19,6 @@ from refspatial_gen.qa.program import Step, Template
 from refspatial_gen.qa.render import LETTERS, round_key
 from refspatial_gen.qa.values import PointValue
 
-
 _RELATIONS = REGISTRY.loaded  # id -> Relation
 
 
@@ -42,10 +41,14 @@ def plan_keys(t: Template) -> tuple[KeyPlan, ...]:
         r = a.get("relation")
         lit = r.value if r is not None and r.kind == "literal" else None
         slot = r.value if r is not None and r.kind != "literal" else None
-        single = tuple(a[k].value for k in ("anchor", "a", "b", "of", "to")
-                       if a.get(k) is not None and a[k].kind in ("slot", "step"))
-        lists = tuple(x.value for k in ("anchors", "options") if a.get(k) is not None and a[k].kind == "list"
-                      for x in a[k].value)
+        single = tuple(
+            a[k].value
+            for k in ("anchor", "a", "b", "of", "to")
+            if a.get(k) is not None and a[k].kind in ("slot", "step")
+        )
+        lists = tuple(
+            x.value for k in ("anchors", "options") if a.get(k) is not None and a[k].kind == "list" for x in a[k].value
+        )
         own = type(st.impl).key_steps is not Op.key_steps
         out.append(KeyPlan(st, lit, slot, single, lists, st.impl.key_extra(st), own))
     return tuple(out)
@@ -118,9 +121,12 @@ def key_steps(t: Template, env: dict[str, Any], ans: Any, idx: SceneIndex) -> li
         phrase_of = idx.phrase
         if ans.region is not None:
             r = ans.region
-            phrase = (f"the free space {r.kind.replace('_', ' ')} "
-                      + " and ".join(phrase_of.get(a, str(a)) for a in r.anchors if a in phrase_of)
-                      if r.kind in FREE_KINDS else f"the free space at the {r.label}")
+            phrase = (
+                f"the free space {r.kind.replace('_', ' ')} "
+                + " and ".join(phrase_of.get(a, str(a)) for a in r.anchors if a in phrase_of)
+                if r.kind in FREE_KINDS
+                else f"the free space at the {r.label}"
+            )
             keys.out.append(KeyStep("Position", phrase, round_key(ans.point)))
         else:
             if keys.final_orient:

@@ -54,7 +54,8 @@ def plan_record(t: Template) -> RecordPlan:
         spots += rec.spot_slots
         if st.impl.targets_for:
             targets.setdefault(st.impl.targets_for, []).extend(
-                r for k in st.impl.target_args if (r := st.args.get(k)) is not None and r.kind in ("slot", "step"))
+                r for k in st.impl.target_args if (r := st.args.get(k)) is not None and r.kind in ("slot", "step")
+            )
     program = []
     prev_name = None
     for st in t.steps:
@@ -65,9 +66,15 @@ def plan_record(t: Template) -> RecordPlan:
         program.append((st, _arg_plan(t, st), default_in, default_of))
         prev_name = st.name
     marks = [style_of(st) for st in t.steps if st.op == "mark"]
-    return RecordPlan(frozenset(rel), tuple(n for n, s in t.slots.items() if s.type == "relation"), tuple(regions),
-                      tuple(spots), tuple(program), {k: tuple(v) for k, v in targets.items()},
-                      marks[0] if marks else "box")
+    return RecordPlan(
+        frozenset(rel),
+        tuple(n for n, s in t.slots.items() if s.type == "relation"),
+        tuple(regions),
+        tuple(spots),
+        tuple(program),
+        {k: tuple(v) for k, v in targets.items()},
+        marks[0] if marks else "box",
+    )
 
 
 class Answer(NamedTuple):
@@ -81,12 +88,22 @@ def _point_answer(ans: PointValue, idx: SceneIndex) -> Answer:
     if ans.region is not None:
         r = ans.region
         poly, world = idx.region_rounded(r)
-        struct = {"kind": "region", "points": [list(ans.point)],
-                  "region": {"surface_id": r.surface_id, "kind": r.kind, "anchors": list(r.anchors),
-                             "label": r.label, "z": round(float(r.z), 6),
-                             "polygon_xy": [list(p) for p in poly], "point_world": list(world)}}
-        return Answer(fmt_points([ans.point]), struct, "",
-                      [int(a) for a in r.anchors if isinstance(a, (int, np.integer))])
+        struct = {
+            "kind": "region",
+            "points": [list(ans.point)],
+            "region": {
+                "surface_id": r.surface_id,
+                "kind": r.kind,
+                "anchors": list(r.anchors),
+                "label": r.label,
+                "z": round(float(r.z), 6),
+                "polygon_xy": [list(p) for p in poly],
+                "point_world": list(world),
+            },
+        }
+        return Answer(
+            fmt_points([ans.point]), struct, "", [int(a) for a in r.anchors if isinstance(a, (int, np.integer))]
+        )
     struct = {"kind": "points", "points": [list(ans.point)], "object_ids": [int(ans.object_id)]}  # type: ignore[arg-type]
     return Answer(fmt_points([ans.point]), struct, "", [int(ans.object_id)])  # type: ignore[arg-type]
 
@@ -109,8 +126,12 @@ def _option_answer(raw: OptionValue, t: Template, idx: SceneIndex, rng: SampleRn
     texts = ["" for _ in opts] if raw.marks else [o if isinstance(o, str) else idx.phrase[o] for o in opts]  # type: ignore[index]
     choices = fmt_choices(texts)
     text = f"({LETTERS[k]})" if (raw.marks or rng.integers(2) == 0) else f"({LETTERS[k]}) {texts[k]}"
-    struct: dict[str, Any] = {"kind": "choice", "options": texts, "letter": LETTERS[k],
-                              "answer": texts[k] if texts[k] else LETTERS[k]}
+    struct: dict[str, Any] = {
+        "kind": "choice",
+        "options": texts,
+        "letter": LETTERS[k],
+        "answer": texts[k] if texts[k] else LETTERS[k],
+    }
     targets: list[int] = []
     if not isinstance(opts[0], str):
         struct["option_ids"] = [int(o) for o in opts]  # type: ignore[call-overload]
@@ -118,10 +139,19 @@ def _option_answer(raw: OptionValue, t: Template, idx: SceneIndex, rng: SampleRn
     if raw.marks:
         style = t.program.record.mark_style
         struct["style"] = style
-        struct["marks"] = [{"label": LETTERS[i], "object_id": int(o), "style": style, "view": view,  # type: ignore[call-overload]
-                            "box": [round(float(x), 1) for x in idx.objects[o].bbox2d]  # type: ignore[index]
-                            if idx.objects[o].bbox2d is not None else None,  # type: ignore[index]
-                            "point": list(idx.point(o))} for i, o in enumerate(opts)]  # type: ignore[arg-type]
+        struct["marks"] = [
+            {
+                "label": LETTERS[i],
+                "object_id": int(o),
+                "style": style,
+                "view": view,  # type: ignore[call-overload]
+                "box": [round(float(x), 1) for x in idx.objects[o].bbox2d]  # type: ignore[index]
+                if idx.objects[o].bbox2d is not None
+                else None,  # type: ignore[index]
+                "point": list(idx.point(o)),
+            }
+            for i, o in enumerate(opts)
+        ]  # type: ignore[arg-type]
     return Answer(text, struct, choices, targets)
 
 
@@ -160,8 +190,11 @@ def _answer(t: Template, env: dict[str, Any], ans: Any, idx: SceneIndex, rng: Sa
 
 def _question(t: Template, env: dict[str, Any], ans: Any, ctx: Context, rng: SampleRng, choices: str) -> str:
     if isinstance(ans, PointValue):
-        instr_seq = t.instructions[int(rng.integers(len(t.instructions)))] if t.instructions else \
-            parsed(lexicon.POINT_INSTRUCTIONS[int(rng.integers(len(lexicon.POINT_INSTRUCTIONS)))])
+        instr_seq = (
+            t.instructions[int(rng.integers(len(t.instructions)))]
+            if t.instructions
+            else parsed(lexicon.POINT_INSTRUCTIONS[int(rng.integers(len(lexicon.POINT_INSTRUCTIONS)))])
+        )
     else:
         instr_seq = None
     variant = t.texts[int(rng.integers(len(t.texts)))]
@@ -196,13 +229,20 @@ def _program_record(t: Template, env: dict[str, Any], idx: SceneIndex) -> list[d
             args["in"] = {"step": default_in} if default_in else "all"
         if default_of is not None:
             args["of"] = {"step": default_of[0]}
-        program.append({"op": st.op, "as": st.name, "args": args, "out": _out_json(env[st.name]),
-                        "weight": st.weight})
+        program.append({"op": st.op, "as": st.name, "args": args, "out": _out_json(env[st.name]), "weight": st.weight})
     return program
 
 
-def build_pair(t: Template, env: dict[str, Any], ans: Any, ctx: Context, rng: SampleRng, frame_ids: list[str],
-               qa_id: str, view: int = 0) -> QAPair:
+def build_pair(
+    t: Template,
+    env: dict[str, Any],
+    ans: Any,
+    ctx: Context,
+    rng: SampleRng,
+    frame_ids: list[str],
+    qa_id: str,
+    view: int = 0,
+) -> QAPair:
     """The QA pair's record. `view` is the asked frame's position in the sample's frames: drawn marks name it,
     so the exporter and the preview draw them on that image."""
     idx = ctx.idx
@@ -223,10 +263,23 @@ def build_pair(t: Template, env: dict[str, Any], ans: Any, ctx: Context, rng: Sa
     checks = list(CHECKS)
     if isinstance(ans, PointValue):
         checks.append("free_point" if ans.region is not None else "point_in_mask")
-    return QAPair(qa_id=qa_id, family=t.family, template=f"{t.family}/{t.name}", question=question, answer=a.text,
-                  answer_struct=a.struct, relations=sorted(relations), steps=t.n_steps, frame_ids=list(frame_ids),
-                  image_size=(idx.W, idx.H), program=_program_record(t, env, idx), trace=trace, key_steps=keys,
-                  checks=checks, targets=a.targets)
+    return QAPair(
+        qa_id=qa_id,
+        family=t.family,
+        template=f"{t.family}/{t.name}",
+        question=question,
+        answer=a.text,
+        answer_struct=a.struct,
+        relations=sorted(relations),
+        steps=t.n_steps,
+        frame_ids=list(frame_ids),
+        image_size=(idx.W, idx.H),
+        program=_program_record(t, env, idx),
+        trace=trace,
+        key_steps=keys,
+        checks=checks,
+        targets=a.targets,
+    )
 
 
 def _ref_json(ref: Ref | None, env: dict[str, Any], t: Template, idx: SceneIndex) -> Any:
@@ -247,8 +300,10 @@ def _ref_json(ref: Ref | None, env: dict[str, Any], t: Template, idx: SceneIndex
     if s.type == "spot":
         return {"slot": ref.value, "spot": list(v)}
     if s.type == "region":
-        return {"slot": ref.value, "region": {"surface_id": v.surface_id, "kind": v.kind,
-                                              "anchors": list(v.anchors), "label": v.label}}
+        return {
+            "slot": ref.value,
+            "region": {"surface_id": v.surface_id, "kind": v.kind, "anchors": list(v.anchors), "label": v.label},
+        }
     return v
 
 
@@ -260,8 +315,12 @@ def _out_json(v: Any) -> Any:
         if v.object_id is not None:
             d["object"] = int(v.object_id)
         if v.region is not None:
-            d["region"] = {"surface_id": v.region.surface_id, "kind": v.region.kind,
-                           "anchors": list(v.region.anchors), "label": v.region.label}
+            d["region"] = {
+                "surface_id": v.region.surface_id,
+                "kind": v.region.kind,
+                "anchors": list(v.region.anchors),
+                "label": v.region.label,
+            }
         return d
     if isinstance(v, OptionValue):
         return {"options": [int(o) if not isinstance(o, str) else o for o in v.options], "correct": v.correct}

@@ -22,7 +22,7 @@ class SampleRng:
     __slots__ = ("random",)
 
     def __init__(self, rng: np.random.Generator) -> None:
-        self.random = random.Random(int(rng.integers(2 ** 63))).random
+        self.random = random.Random(int(rng.integers(2**63))).random
 
     def integers(self, n: int) -> int:
         """Uniform in [0, n) (53-bit float scaled: bias below 1e-15 for the small n used here)."""

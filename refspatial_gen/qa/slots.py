@@ -13,9 +13,15 @@ from refspatial_gen.yamlpos import line_of
 
 SLOT_KEYS = ("type", "choices", "category", "has_front", "min", "max", "kinds", "phrases", "description")
 SLOT_FORMS = {  # placeholder suffixes each slot type renders
-    "object": ("", "category", "color"), "anchor": ("", "category", "color"),
-    "relation": ("", "prep", "cmp", "sup", "ord", "adj", "noun"), "direction": ("",), "surface": ("",),
-    "number": ("", "value"), "category": ("", "plural"), "color": ("",), "region": ("", "surface"),
+    "object": ("", "category", "color"),
+    "anchor": ("", "category", "color"),
+    "relation": ("", "prep", "cmp", "sup", "ord", "adj", "noun"),
+    "direction": ("",),
+    "surface": ("",),
+    "number": ("", "value"),
+    "category": ("", "plural"),
+    "color": ("",),
+    "region": ("", "surface"),
     "spot": ("", "surface", "label"),
 }
 BUILTIN_PLACEHOLDERS = ("choices", "instruction")
@@ -78,8 +84,7 @@ def _compile_slot(name: Any, spec: Any, p: Path, ctx: Ctx, known_rel: tuple[str,
 
 def _slot_choices(s: SlotSpec, ch: Any, p: Path, ctx: Ctx, known_rel: tuple[str, ...]) -> None:
     name, ty = s.name, s.type
-    if not isinstance(ch, list) or not ch or not all(isinstance(c, (str, int)) and not isinstance(c, bool)
-                                                       for c in ch):
+    if not isinstance(ch, list) or not ch or not all(isinstance(c, (str, int)) and not isinstance(c, bool) for c in ch):
         ctx.err(p + ("choices",), f"slot {name!r}: choices must be a non-empty list of names")
         return
     s.choices = tuple(ch)

@@ -24,8 +24,7 @@ def flat_refs(args: dict[str, Ref]) -> list[Ref]:
     return out
 
 
-def compile_program(v: Any, path: Path, ctx: Ctx, slots: dict[str, SlotSpec], known_rel: tuple[str, ...]
-                    ) -> list[Step]:
+def compile_program(v: Any, path: Path, ctx: Ctx, slots: dict[str, SlotSpec], known_rel: tuple[str, ...]) -> list[Step]:
     if not isinstance(v, list) or not v:
         ctx.err(path, "program must be a non-empty list of steps")
         return []
@@ -49,8 +48,17 @@ def compile_program(v: Any, path: Path, ctx: Ctx, slots: dict[str, SlotSpec], kn
     return steps
 
 
-def _compile_step(raw: Any, i: int, p: Path, ctx: Ctx, slots: dict[str, SlotSpec], names: dict[str, Step],
-                  known_rel: tuple[str, ...], rel_uses: RelUses, prior: list[Step]) -> Step | None:
+def _compile_step(
+    raw: Any,
+    i: int,
+    p: Path,
+    ctx: Ctx,
+    slots: dict[str, SlotSpec],
+    names: dict[str, Step],
+    known_rel: tuple[str, ...],
+    rel_uses: RelUses,
+    prior: list[Step],
+) -> Step | None:
     if not isinstance(raw, dict):
         ctx.err(p, f"a step must be a mapping with 'op:', got {type(raw).__name__}")
         return None
@@ -92,8 +100,16 @@ def _compile_step(raw: Any, i: int, p: Path, ctx: Ctx, slots: dict[str, SlotSpec
 class _ArgReader:
     """Reads one argument of one step into a Ref, by the kind its op declares."""
 
-    def __init__(self, spec: Op, p: Path, ctx: Ctx, slots: dict[str, SlotSpec], names: dict[str, Step],
-                 known_rel: tuple[str, ...], rel_uses: RelUses) -> None:
+    def __init__(
+        self,
+        spec: Op,
+        p: Path,
+        ctx: Ctx,
+        slots: dict[str, SlotSpec],
+        names: dict[str, Step],
+        known_rel: tuple[str, ...],
+        rel_uses: RelUses,
+    ) -> None:
         self.spec, self.p, self.ctx, self.slots, self.names = spec, p, ctx, slots, names
         self.known_rel, self.rel_uses = known_rel, rel_uses
 
@@ -150,8 +166,9 @@ class _ArgReader:
                 self.err(f"step {x!r} gives a {names[x].out}; {where} needs {what}")
                 return None
             return Ref("step", x)
-        self.err(f"unknown slot {x!r} (slots: {', '.join(sorted(slots)) or 'none'}; steps: "
-                 f"{', '.join(names) or 'none'})")
+        self.err(
+            f"unknown slot {x!r} (slots: {', '.join(sorted(slots)) or 'none'}; steps: {', '.join(names) or 'none'})"
+        )
         return None
 
     def refs(self, v: list[Any], want_slot: tuple[str, ...], want_step: tuple[str, ...], what: str) -> Ref | None:
@@ -196,8 +213,10 @@ class _ArgReader:
             return Ref("literal", v)
         if kind in ("surface", "category", "color") and isinstance(v, str) and v:
             return Ref("literal", v)
-        self.err(f"unknown slot {v!r}: {where} needs a {kind} slot" + (" or literal" if kind not in ("region", "spot")
-                                                                      else ""))
+        self.err(
+            f"unknown slot {v!r}: {where} needs a {kind} slot"
+            + (" or literal" if kind not in ("region", "spot") else "")
+        )
         return None
 
 
@@ -230,7 +249,7 @@ def assign_bounds(steps: list[Step]) -> None:
         st.min_out = need
         if j == i + 1 and nxt is not None and nxt.impl.implicit_of and nxt.args.get("of") is None:
             st.exact_one = True
-        for later in steps[i + 1:]:
+        for later in steps[i + 1 :]:
             for r in later.args.values():
                 rs = r.value if r.kind == "list" else (r,)
                 for x in rs:

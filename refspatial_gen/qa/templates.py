@@ -25,6 +25,8 @@ from refspatial_gen.yamlpos import line_of, load_yaml
 __all__ = ["MAX_STEPS", "Ref", "SlotSpec", "Step", "Template", "compile_templates", "load_template_file"]
 MAX_STEPS = 5
 TEMPLATE_KEYS = ("name", "weight", "slots", "program", "text", "instruction", "description")
+
+
 def load_template_file(path: str | pathlib.Path, relation_ids: tuple[str, ...] | None = None) -> list[Template]:
     """Load and compile every template of one file. Raises RecipeErrors listing all problems."""
     file = str(path)
@@ -36,8 +38,9 @@ def load_template_file(path: str | pathlib.Path, relation_ids: tuple[str, ...] |
     return out
 
 
-def compile_templates(data: Any, file: str, lines: dict, errors: list[RecipeError],
-                      relation_ids: tuple[str, ...] | None = None) -> list[Template]:
+def compile_templates(
+    data: Any, file: str, lines: dict, errors: list[RecipeError], relation_ids: tuple[str, ...] | None = None
+) -> list[Template]:
     """Compile a parsed template document; problems go to `errors` (nothing raised)."""
     ctx = Ctx(file, lines, errors)
     known_rel = tuple(relation_ids) if relation_ids else template_relations()
@@ -84,36 +87,58 @@ def _compile_one(item: Any, path: tuple, ctx: Ctx, known_rel: tuple[str, ...]) -
     slots = compile_slots(item.get("slots"), path + ("slots",), ctx, known_rel)
     steps = compile_program(item.get("program"), path + ("program",), ctx, slots, known_rel)
     texts = _compile_texts(item.get("text"), path + ("text",), ctx, required=True)
-    instr = _compile_texts(item.get("instruction"), path + ("instruction",), ctx, required=False) \
-        if item.get("instruction") is not None else None
+    instr = (
+        _compile_texts(item.get("instruction"), path + ("instruction",), ctx, required=False)
+        if item.get("instruction") is not None
+        else None
+    )
     if not steps:
         return None
     answer_type = steps[-1].out
     if answer_type not in ANSWER_TYPES:
-        ctx.err(path + ("program", len(steps) - 1), f"the program must end in a step giving an answer "
-                f"({', '.join(ANSWER_TYPES)}), but {steps[-1].op!r} gives a {answer_type}")
+        ctx.err(
+            path + ("program", len(steps) - 1),
+            f"the program must end in a step giving an answer "
+            f"({', '.join(ANSWER_TYPES)}), but {steps[-1].op!r} gives a {answer_type}",
+        )
     n_steps = max(1, sum(s.weight for s in steps))  # a plain reference is one step
     if n_steps > MAX_STEPS:
-        ctx.err(path + ("program",), f"step count {n_steps} out of range: questions have 1 to {MAX_STEPS} steps "
-                f"(anchors and directional phrases, formats.md)")
+        ctx.err(
+            path + ("program",),
+            f"step count {n_steps} out of range: questions have 1 to {MAX_STEPS} steps "
+            f"(anchors and directional phrases, formats.md)",
+        )
     used_in_program = {r.value for s in steps for r in flat_refs(s.args) if r.kind == "slot"}
     text_slots = _text_slots(texts, instr, slots, steps, path, ctx)
     _check_slot_use(slots, used_in_program, text_slots, path, ctx)
     if len(ctx.errors) > n0:
         return None
-    literal_rels = sorted({r.value for s in steps for k, r in s.args.items()
-                           if k == "relation" and r.kind == "literal"})
+    literal_rels = sorted(
+        {r.value for s in steps for k, r in s.args.items() if k == "relation" and r.kind == "literal"}
+    )
     assign_binds(steps, slots)
     assign_bounds(steps)
-    t = Template(name=name, file=ctx.file, line=line_of(ctx.lines, path), weight=float(weight), slots=slots,
-                 steps=steps, texts=texts, instructions=instr, n_steps=n_steps, answer_type=answer_type,
-                 relations=tuple(literal_rels), unbound=tuple(sorted(n for n in text_slots if n not in used_in_program)))
+    t = Template(
+        name=name,
+        file=ctx.file,
+        line=line_of(ctx.lines, path),
+        weight=float(weight),
+        slots=slots,
+        steps=steps,
+        texts=texts,
+        instructions=instr,
+        n_steps=n_steps,
+        answer_type=answer_type,
+        relations=tuple(literal_rels),
+        unbound=tuple(sorted(n for n in text_slots if n not in used_in_program)),
+    )
     plan_program(t)
     return t
 
 
-def _text_slots(texts: list[Seq], instr: list[Seq] | None, slots: dict[str, SlotSpec], steps: list[Step],
-                path: Path, ctx: Ctx) -> set[str]:
+def _text_slots(
+    texts: list[Seq], instr: list[Seq] | None, slots: dict[str, SlotSpec], steps: list[Step], path: Path, ctx: Ctx
+) -> set[str]:
     """The slots the text variants mention (each placeholder checked against its slot's forms)."""
     text_slots = set()
     for j, seq in enumerate(texts + (instr or [])):
@@ -127,8 +152,11 @@ def _text_slots(texts: list[Seq], instr: list[Seq] | None, slots: dict[str, Slot
                 continue
             s = slots[base]
             if form not in SLOT_FORMS[s.type]:
-                ctx.err(path + sub, f"{{{ph}}}: a {s.type} slot has no form {form!r} "
-                        f"(forms: {', '.join(f or '(plain)' for f in SLOT_FORMS[s.type])})")
+                ctx.err(
+                    path + sub,
+                    f"{{{ph}}}: a {s.type} slot has no form {form!r} "
+                    f"(forms: {', '.join(f or '(plain)' for f in SLOT_FORMS[s.type])})",
+                )
                 continue
             if s.type == "relation":
                 _check_forms(s, form or "prep", ctx, path + sub)
@@ -145,16 +173,23 @@ def _check_slot_use(slots: dict[str, SlotSpec], used: set[str], text_slots: set[
     carries meaning (an object, a relation...) is read by the program (else its meaning would go unchecked)."""
     for sname, s in slots.items():
         if sname not in used and sname not in text_slots:
-            ctx.err(path + ("slots", sname), f"slot {sname!r} is declared but used neither in the program nor in the text")
-        elif s.type in ("object", "anchor", "relation", "direction", "region", "spot") and sname in used \
-                and sname not in text_slots:
+            ctx.err(
+                path + ("slots", sname), f"slot {sname!r} is declared but used neither in the program nor in the text"
+            )
+        elif (
+            s.type in ("object", "anchor", "relation", "direction", "region", "spot")
+            and sname in used
+            and sname not in text_slots
+        ):
             ctx.err(path + ("text",), f"slot {sname!r} is used by the program but no text variant mentions it")
     for sname in sorted(text_slots):
         if sname in used:
             continue
         if slots[sname].type in ("object", "anchor", "relation", "region", "spot", "direction"):
-            ctx.err(path + ("slots", sname), f"slot {sname!r} appears only in the text; the program must use it "
-                    "(its meaning would not be checked)")
+            ctx.err(
+                path + ("slots", sname),
+                f"slot {sname!r} appears only in the text; the program must use it (its meaning would not be checked)",
+            )
 
 
 def _check_forms(s: SlotSpec, form: str, ctx: Ctx, path: tuple) -> None:
@@ -162,8 +197,11 @@ def _check_forms(s: SlotSpec, form: str, ctx: Ctx, path: tuple) -> None:
         if form in s.phrases.get(rel, {}):
             continue
         if form not in lexicon.RELATION_FORMS.get(rel, {}):
-            ctx.err(path, f"relation {rel!r} (slot {s.name!r}) has no {form!r} wording; add phrases: "
-                    f"{{{rel}: {{{form}: ...}}}} to the slot or drop it from the choices")
+            ctx.err(
+                path,
+                f"relation {rel!r} (slot {s.name!r}) has no {form!r} wording; add phrases: "
+                f"{{{rel}: {{{form}: ...}}}} to the slot or drop it from the choices",
+            )
 
 
 def _compile_texts(v: Any, path: tuple, ctx: Ctx, required: bool) -> list[Seq]:
@@ -182,5 +220,3 @@ def _compile_texts(v: Any, path: tuple, ctx: Ctx, required: bool) -> list[Seq]:
         except TextSyntaxError as e:
             ctx.err(path + (j,), f"text variant: {e}")
     return out
-
-

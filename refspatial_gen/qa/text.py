@@ -9,8 +9,8 @@ generation; anything with integers(n) and random()).
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable, Union
 
 import numpy as np
 
@@ -33,17 +33,17 @@ class Slot:
 
 @dataclass(frozen=True)
 class Alt:
-    options: tuple["Seq", ...]
+    options: tuple[Seq, ...]
 
 
 @dataclass(frozen=True)
 class Opt:
-    body: "Seq"
+    body: Seq
 
 
 @dataclass(frozen=True)
 class Seq:
-    parts: tuple[Union[Lit, Slot, Alt, Opt], ...]
+    parts: tuple[Lit | Slot | Alt | Opt, ...]
 
 
 def parse(text: str) -> Seq:
@@ -91,7 +91,7 @@ def _parse_seq(text: str, pos: int, closers: str) -> tuple[Seq, int]:
     return Seq(tuple(parts)), pos
 
 
-def _parse_brace(text: str, pos: int) -> tuple[Union[Slot, Alt], int]:
+def _parse_brace(text: str, pos: int) -> tuple[Slot | Alt, int]:
     start = pos
     options: list[Seq] = []
     while True:
@@ -105,14 +105,14 @@ def _parse_brace(text: str, pos: int) -> tuple[Union[Slot, Alt], int]:
         pos += 1  # "}"
         break
     if len(options) == 1:
-        raw = text[start:pos - 1].strip()
+        raw = text[start : pos - 1].strip()
         if not _IDENT.match(raw):
             raise TextSyntaxError(f"placeholder {{{raw}}} at column {start} is not a name (use {{a|b}} for synonyms)")
         return Slot(raw), pos
     return Alt(tuple(options)), pos
 
 
-_PLACEHOLDERS: dict[int, tuple["Seq", frozenset]] = {}
+_PLACEHOLDERS: dict[int, tuple[Seq, frozenset]] = {}
 
 
 def placeholders(seq: Seq) -> frozenset[str]:
@@ -140,8 +140,9 @@ def _placeholders(seq: Seq) -> set[str]:
     return out
 
 
-def render(seq: Seq, values: Callable[[str], str], rng: np.random.Generator, p_optional: float = 0.5,
-           sentence: bool = True) -> str:
+def render(
+    seq: Seq, values: Callable[[str], str], rng: np.random.Generator, p_optional: float = 0.5, sentence: bool = True
+) -> str:
     """Render with synonyms and optional parts drawn from `rng`; whitespace tidied, and the first letter
     capitalised when `sentence` (not for phrases inserted into a sentence)."""
     parts = seq.parts

@@ -60,8 +60,13 @@ def _answer_key(v: Any) -> Any:
     return v
 
 
-def verify_qa(qa: QAPair, frames: dict[str, Frame], graphs: dict[str, SceneGraph],
-              worlds: dict[str, World], order: list[str] | None = None) -> list[str]:
+def verify_qa(
+    qa: QAPair,
+    frames: dict[str, Frame],
+    graphs: dict[str, SceneGraph],
+    worlds: dict[str, World],
+    order: list[str] | None = None,
+) -> list[str]:
     """Reasons this QA pair fails (empty when it passes). `order`: the sample's frame ids in stored order
     (drawn marks name their image by position in it)."""
     problems: list[str] = []
@@ -73,9 +78,12 @@ def verify_qa(qa: QAPair, frames: dict[str, Frame], graphs: dict[str, SceneGraph
         worlds[fid] = World(frame, graph)
     w = worlds[fid]
     if tuple(qa.image_size) != (frame.camera.width, frame.camera.height):
-        problems.append(f"image_size {list(qa.image_size)} is not the frame's {[frame.camera.width, frame.camera.height]}")
+        problems.append(
+            f"image_size {list(qa.image_size)} is not the frame's {[frame.camera.width, frame.camera.height]}"
+        )
     if qa.family == "point_depth":  # built-in camera-frame questions: no program, re-checked on the depth map
         from refspatial_gen.qa.verify_pointdepth import verify_point_depth
+
         return problems + verify_point_depth(qa, frame)
     # --- step count
     if not 1 <= qa.steps <= 5:
@@ -131,8 +139,10 @@ def _check_phrases(qa: QAPair, graph: SceneGraph, frame: Frame) -> list[str]:
                 seen.add(key)
                 ids = resolve_phrase(v["phrase"], graph)
                 if list(ids) != [int(v["object"])]:
-                    out.append(f"phrase {v['phrase']!r} resolves to {list(ids)}, not to object {v['object']} "
-                               "(not a unique reference)")
+                    out.append(
+                        f"phrase {v['phrase']!r} resolves to {list(ids)}, not to object {v['object']} "
+                        "(not a unique reference)"
+                    )
                 if v["phrase"].lower() not in q:
                     out.append(f"phrase {v['phrase']!r} does not appear in the question")
     return out
@@ -197,7 +207,7 @@ def _check_choice(qa: QAPair, s: dict[str, Any], final: Any) -> list[str]:
     letter = s.get("letter")
     opts = list(s.get("options") or [])
     m = re.match(r"^\(([A-H])\)(?: (.*))?$", qa.answer)
-    if not m or m.group(1) != letter or letter not in LETTERS[:max(1, len(opts))]:
+    if not m or m.group(1) != letter or letter not in LETTERS[: max(1, len(opts))]:
         return [f"answer {qa.answer!r} does not match letter {letter!r} of {len(opts)} options"]
     k = LETTERS.index(letter)
     if m.group(2) is not None and m.group(2) != opts[k]:
@@ -243,8 +253,11 @@ def _check_number(qa: QAPair, s: dict[str, Any], final: Any) -> list[str]:
             t = math.radians(t)
             if qa.answer.startswith("rotate") and re.search(r"rotate (left|down)", qa.answer):
                 t = -t
-        tol = 0.006 if "meter" in qa.answer and "centi" not in qa.answer else (0.0051 if "centi" in qa.answer
-                                                                             else math.radians(0.051))
+        tol = (
+            0.006
+            if "meter" in qa.answer and "centi" not in qa.answer
+            else (0.0051 if "centi" in qa.answer else math.radians(0.051))
+        )
         ref = abs(v) if q == "angle" else v
         if abs(t - ref) > tol:
             out.append(f"answer text {qa.answer!r} does not render the value {v:.4f}")
@@ -269,7 +282,9 @@ def _check_marks(qa: QAPair, w: World, order: list[str]) -> list[str]:
             out.append(f"mark ({label}) names object {oid!r}, which is not in the frame")
             continue
         box = m.get("box")
-        if box is not None and (o.bbox2d is None or any(abs(float(a) - float(b)) > 0.051 for a, b in zip(box, o.bbox2d))):
+        if box is not None and (
+            o.bbox2d is None or any(abs(float(a) - float(b)) > 0.051 for a, b in zip(box, o.bbox2d))
+        ):
             out.append(f"mark ({label}) box {box} is not object {oid}'s 2D box")
         pt = m.get("point")
         if pt is not None:
@@ -281,8 +296,12 @@ def _check_marks(qa: QAPair, w: World, order: list[str]) -> list[str]:
 
 def _find_region(graph: SceneGraph, r: dict):
     for reg in graph.free_space:
-        if reg.surface_id == r.get("surface_id") and reg.kind == r.get("kind") \
-                and list(reg.anchors) == list(r.get("anchors") or []) and reg.label == r.get("label", reg.label):
+        if (
+            reg.surface_id == r.get("surface_id")
+            and reg.kind == r.get("kind")
+            and list(reg.anchors) == list(r.get("anchors") or [])
+            and reg.label == r.get("label", reg.label)
+        ):
             return reg
     return None
 
@@ -306,8 +325,12 @@ def _check_trace(qa: QAPair, w: World) -> list[str]:
                 out.append(f"trace line {ln!r} is not '[Type] [phrase]: (values)'")
                 continue
             vals = [float(x) for x in mm.group(3).split(",")]
-            if mm.group(1) != ks.type or mm.group(2) != ks.phrase or len(vals) != len(ks.value) \
-                    or any(abs(a - b) > 1e-9 for a, b in zip(vals, ks.value)):
+            if (
+                mm.group(1) != ks.type
+                or mm.group(2) != ks.phrase
+                or len(vals) != len(ks.value)
+                or any(abs(a - b) > 1e-9 for a, b in zip(vals, ks.value))
+            ):
                 out.append(f"trace line {ln!r} differs from key step {ks.type} {ks.phrase!r} {ks.value}")
     # key-step ground truth
     by_phrase = {}

@@ -106,8 +106,10 @@ def verify_point_depth(qa: QAPair, frame: Frame) -> list[str]:
             want = "AB"[int(za > zb)] if rel == "front" else "AB"[int(za < zb)]
             m = re.match(r"^\(([AB])\)", qa.answer)
             if s.get("letter") != want or m is None or m.group(1) != want:
-                out.append(f"answer {qa.answer!r} (letter {s.get('letter')}) but depths {za:.3f}, {zb:.3f} m "
-                           f"give ({want}) for {rel}")
+                out.append(
+                    f"answer {qa.answer!r} (letter {s.get('letter')}) but depths {za:.3f}, {zb:.3f} m "
+                    f"give ({want}) for {rel}"
+                )
             word = "closer" if rel == "front" else "farther"
             if word not in qa.question and ("nearer" if rel == "front" else "farther") not in qa.question:
                 out.append(f"question does not ask which point is {word}")

@@ -67,7 +67,11 @@ class World:
         m = self._masks.get(oid)
         if m is None:
             o = self.objects[oid]
-            m = o.mask.decode() if o.mask is not None else np.zeros((self.frame.camera.height, self.frame.camera.width), bool)
+            m = (
+                o.mask.decode()
+                if o.mask is not None
+                else np.zeros((self.frame.camera.height, self.frame.camera.width), bool)
+            )
             self._masks[oid] = m
         return m
 
@@ -195,8 +199,9 @@ class Run:
         winners, undecided = [], []
         for x in cands:
             try:
-                if all(w.holds(rel, x, y, anchor) if self.anchored(rel) else w.holds(rel, x, y)
-                       for y in cands if y != x):
+                if all(
+                    w.holds(rel, x, y, anchor) if self.anchored(rel) else w.holds(rel, x, y) for y in cands if y != x
+                ):
                     winners.append(x)
             except Undecided as e:
                 undecided.append(str(e))

@@ -28,10 +28,39 @@ for _m in MODULES:
     importlib.import_module(_m)
 
 # The 31 relation ids of shared/spec/relations.md, in the table's order.
-SPEC_31 = ("left", "right", "close", "far", "depth", "above_world", "below_world", "above_image", "below_image",
-           "tall", "short", "between", "rotation_horizontal", "rotation_vertical", "free_space", "corner", "edge",
-           "angle", "distance", "front", "behind", "big", "small", "inside", "outside", "facing", "facing_away",
-           "wide", "thin", "touching", "far_from")
+SPEC_31 = (
+    "left",
+    "right",
+    "close",
+    "far",
+    "depth",
+    "above_world",
+    "below_world",
+    "above_image",
+    "below_image",
+    "tall",
+    "short",
+    "between",
+    "rotation_horizontal",
+    "rotation_vertical",
+    "free_space",
+    "corner",
+    "edge",
+    "angle",
+    "distance",
+    "front",
+    "behind",
+    "big",
+    "small",
+    "inside",
+    "outside",
+    "facing",
+    "facing_away",
+    "wide",
+    "thin",
+    "touching",
+    "far_from",
+)
 
 
 def all_facts(geom: Any) -> list[RelationFact]:
@@ -69,5 +98,14 @@ def listing() -> list[dict[str, Any]]:
     return [r.to_json() for r in spec + extra]
 
 
-__all__ = ["REGISTRY", "SPEC_31", "Relation", "all_facts", "evaluate", "ids_by_use", "listing", "register",
-           "template_relations"]
+__all__ = [
+    "REGISTRY",
+    "SPEC_31",
+    "Relation",
+    "all_facts",
+    "evaluate",
+    "ids_by_use",
+    "listing",
+    "register",
+    "template_relations",
+]

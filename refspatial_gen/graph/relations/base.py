@@ -84,11 +84,9 @@ class Relation:
     # a stored graph's whole table (binary relations: code rows over the sorted ids; between: BetweenTable)
     table: TableRule | None = field(default=None, compare=False, repr=False)
     # the argument tuples `GraphIndex.instances` enumerates (default: every tuple of distinct objects)
-    domain: Callable[[RelationTables], list[tuple[Any, ...]]] | None = field(default=None, compare=False,
-                                                                             repr=False)
+    domain: Callable[[RelationTables], list[tuple[Any, ...]]] | None = field(default=None, compare=False, repr=False)
     # every instance at once, where instances are not determined by their arguments (free-space regions)
-    instances: Callable[[RelationTables], list[RelationFact]] | None = field(default=None, compare=False,
-                                                                            repr=False)
+    instances: Callable[[RelationTables], list[RelationFact]] | None = field(default=None, compare=False, repr=False)
 
     gated: bool = field(init=False, compare=False, repr=False)  # evaluated only when gravity is known
 
@@ -96,10 +94,22 @@ class Relation:
         object.__setattr__(self, "gated", ("gravity" in self.needs) if self.world_only is None else self.world_only)
 
     def to_json(self) -> dict[str, Any]:
-        return {"id": self.id, "name": self.id.replace("_", " "), "group": self.group, "frame": self.frame,
-                "arity": self.arity, "value": self.value, "margin": self.margin, "definition": self.definition,
-                "sources": list(self.sources), "storage": self.storage, "mirror_of": self.mirror_of,
-                "negation_of": self.negation_of, "needs": list(self.needs), "in_31": self.spec}
+        return {
+            "id": self.id,
+            "name": self.id.replace("_", " "),
+            "group": self.group,
+            "frame": self.frame,
+            "arity": self.arity,
+            "value": self.value,
+            "margin": self.margin,
+            "definition": self.definition,
+            "sources": list(self.sources),
+            "storage": self.storage,
+            "mirror_of": self.mirror_of,
+            "negation_of": self.negation_of,
+            "needs": list(self.needs),
+            "in_31": self.spec,
+        }
 
 
 REGISTRY: Registry[Relation] = Registry("relation")
@@ -129,5 +139,10 @@ def decide_band(value: float, low: float, high: float) -> bool | None:
 
 
 def negate(f: RelationFact, relation: str | None = None, args: tuple[Any, ...] | None = None) -> RelationFact:
-    return RelationFact(relation or f.relation, args if args is not None else f.args,
-                        None if f.holds is None else (not f.holds), -f.value, f.margin)
+    return RelationFact(
+        relation or f.relation,
+        args if args is not None else f.args,
+        None if f.holds is None else (not f.holds),
+        -f.value,
+        f.margin,
+    )

@@ -43,8 +43,9 @@ def ordered_pairs_by_id(ids: np.ndarray) -> list[tuple[int, int]]:
     return [(int(order[a]), int(order[b])) for a in range(len(order)) for b in range(a + 1, len(order))]
 
 
-def pair_facts(rel: str, geom, value: np.ndarray, codes: np.ndarray, margin: np.ndarray | float,
-               only: set[int] | None = None) -> list[RelationFact]:
+def pair_facts(
+    rel: str, geom, value: np.ndarray, codes: np.ndarray, margin: np.ndarray | float, only: set[int] | None = None
+) -> list[RelationFact]:
     """One fact per unordered pair (lower id first). `only`: keep these codes (sparse storage)."""
     m = np.broadcast_to(np.asarray(margin, float), value.shape)
     out = []

@@ -6,9 +6,9 @@ and the bowl" must pick out one cup; when two qualify the question is not asked 
 
 from __future__ import annotations
 
-import numpy as np
-
 from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from refspatial_gen.core.geometry import inside_fraction
 from refspatial_gen.core.model import RelationFact
@@ -29,7 +29,9 @@ def _inside(geom):
         n = g.n
         frac = np.zeros((n, n))
         # only pairs whose boxes overlap can have volume inside one another
-        overlap = np.all(g.lo[:, None, :] < g.hi[None, :, :], axis=2) & np.all(g.lo[None, :, :] < g.hi[:, None, :], axis=2)
+        overlap = np.all(g.lo[:, None, :] < g.hi[None, :, :], axis=2) & np.all(
+            g.lo[None, :, :] < g.hi[:, None, :], axis=2
+        )
         for i, j in zip(*np.nonzero(overlap)):
             if i != j:
                 frac[i, j] = inside_fraction(g.boxes[i], g.boxes[j], n=8)
@@ -37,6 +39,7 @@ def _inside(geom):
         codes = band_matrix(-frac, -(th.inside_fraction + th.inside_band), -(th.inside_fraction - th.inside_band))
         np.fill_diagonal(codes, UNDECIDED)
         return frac, codes, th.inside_band
+
     return cached(geom, "contain:inside", f)
 
 
@@ -92,20 +95,28 @@ def table_from_arrays(arr) -> dict:
     B, C, cand, code, t = arr
     P, A = np.nonzero(cand)
     Bl, Cl = B.tolist(), C.tolist()
-    return {(a, Bl[p], Cl[p]): (c, tv) for p, a, c, tv in
-            zip(P.tolist(), A.tolist(), code[P, A].tolist(), t[P, A].tolist())}
+    return {
+        (a, Bl[p], Cl[p]): (c, tv) for p, a, c, tv in zip(P.tolist(), A.tolist(), code[P, A].tolist(), t[P, A].tolist())
+    }
 
 
 def _between(geom):
-    return cached(geom, "contain:between",
-                  lambda g: between_table(g.centers[:, :2], g.ids, g.categories, g.surface_distance, g.th))
+    return cached(
+        geom,
+        "contain:between",
+        lambda g: between_table(g.centers[:, :2], g.ids, g.categories, g.surface_distance, g.th),
+    )
 
 
 def _inside_stored(geom: SceneGeom) -> list[RelationFact]:
     frac, codes, m = _inside(geom)
     order = np.argsort(geom.ids, kind="stable")
-    return [fact("inside", (int(geom.ids[i]), int(geom.ids[j])), codes[i, j], frac[i, j], m)
-            for i in order for j in order if i != j and codes[i, j] != FALSE]
+    return [
+        fact("inside", (int(geom.ids[i]), int(geom.ids[j])), codes[i, j], frac[i, j], m)
+        for i in order
+        for j in order
+        if i != j and codes[i, j] != FALSE
+    ]
 
 
 def _inside_eval(negated: bool):
@@ -116,6 +127,7 @@ def _inside_eval(negated: bool):
         if negated:
             return RelationFact("outside", (a, b), None if f.holds is None else not f.holds, f.value, f.margin)
         return f
+
     return evaluate
 
 
@@ -196,15 +208,53 @@ def _between_cell(t: RelationTables, args: tuple[Any, ...]) -> Cell | None:
     return Cell(h, tv, t.th.between_t_margin)
 
 
-register(Relation("inside", "containment", "world", 2, "share of A's box volume inside B's box",
-                  "inside_fraction, inside_band", "more than 30% of A's volume lies inside B's box", storage="sparse",
-                  needs=G, qa="pairwise", evaluate=_inside_eval(False), stored=_inside_stored,
-                  cell=sparse_cell("inside", false_absent(lambda th: th.inside_band)), table=sparse_table("inside")))
-register(Relation("outside", "containment", "world", 2, "share of A's box volume inside B's box",
-                  "inside_fraction, inside_band", "less than 30% of A's volume lies inside B's box",
-                  storage="derived", negation_of="inside", needs=G, qa="pairwise", evaluate=_inside_eval(True)))
-register(Relation("between", "containment", "world", 3, "position of A's centre along the B-C segment (0 at B, 1 at C)",
-                  "between_t_margin, between_corridor",
-                  "A's centre lies in the corridor spanned by B and C (ground plane), and no other object of A's "
-                  "category does", storage="derived", needs=G, evaluate=_between_eval, cell=_between_cell,
-                  table=_between_table))
+register(
+    Relation(
+        "inside",
+        "containment",
+        "world",
+        2,
+        "share of A's box volume inside B's box",
+        "inside_fraction, inside_band",
+        "more than 30% of A's volume lies inside B's box",
+        storage="sparse",
+        needs=G,
+        qa="pairwise",
+        evaluate=_inside_eval(False),
+        stored=_inside_stored,
+        cell=sparse_cell("inside", false_absent(lambda th: th.inside_band)),
+        table=sparse_table("inside"),
+    )
+)
+register(
+    Relation(
+        "outside",
+        "containment",
+        "world",
+        2,
+        "share of A's box volume inside B's box",
+        "inside_fraction, inside_band",
+        "less than 30% of A's volume lies inside B's box",
+        storage="derived",
+        negation_of="inside",
+        needs=G,
+        qa="pairwise",
+        evaluate=_inside_eval(True),
+    )
+)
+register(
+    Relation(
+        "between",
+        "containment",
+        "world",
+        3,
+        "position of A's centre along the B-C segment (0 at B, 1 at C)",
+        "between_t_margin, between_corridor",
+        "A's centre lies in the corridor spanned by B and C (ground plane), and no other object of A's category does",
+        storage="derived",
+        needs=G,
+        evaluate=_between_eval,
+        cell=_between_cell,
+        table=_between_table,
+    )
+)

@@ -69,25 +69,83 @@ def _stored(rel: str) -> Callable[[SceneGeom], list[RelationFact]]:
 
 def _pair(rid: str, frame: str, value: str, margin: str, definition: str) -> None:
     """A canonical pair relation: stored once per pair, looked up and tabled by the pair rules."""
-    register(Relation(rid, "directions", frame, 2, value, margin, definition, qa="ordered",
-                      evaluate=pair_evaluator(_m(rid), rid), stored=_stored(rid), cell=pair_cell(rid),
-                      table=pair_table(rid)))
+    register(
+        Relation(
+            rid,
+            "directions",
+            frame,
+            2,
+            value,
+            margin,
+            definition,
+            qa="ordered",
+            evaluate=pair_evaluator(_m(rid), rid),
+            stored=_stored(rid),
+            cell=pair_cell(rid),
+            table=pair_table(rid),
+        )
+    )
 
 
 def _mirror(rid: str, of: str, frame: str, value: str, margin: str, definition: str) -> None:
-    register(Relation(rid, "directions", frame, 2, value, margin, definition, mirror_of=of, qa="ordered",
-                      evaluate=pair_evaluator(_m(of), of, rid)))
+    register(
+        Relation(
+            rid,
+            "directions",
+            frame,
+            2,
+            value,
+            margin,
+            definition,
+            mirror_of=of,
+            qa="ordered",
+            evaluate=pair_evaluator(_m(of), of, rid),
+        )
+    )
 
 
-_pair("left", "cam", "camera-x of B's centre minus A's (m)", "lateral_margin, image_margin",
-      "A's centre is left of B's in the camera frame by more than the margin, and the image agrees")
-_mirror("right", "left", "cam", "camera-x of A's centre minus B's (m)", "lateral_margin, image_margin",
-        "mirror of left: A's centre is right of B's")
-_pair("front", "cam", "nearest-face depth of B minus A's (m)", "depth_margin",
-      "A's nearest face is nearer the camera than B's by the margin (centre depths agree)")
-_mirror("behind", "front", "cam", "nearest-face depth of A minus B's (m)", "depth_margin",
-        "mirror of front: A is farther from the camera than B")
-_pair("above_image", "img", "image-y of B's mask centroid minus A's (fraction of height)", "image_margin",
-      "A's 2D centre is higher in the image than B's")
-_mirror("below_image", "above_image", "img", "image-y of A's mask centroid minus B's (fraction of height)",
-        "image_margin", "mirror of above (image): A's 2D centre is lower in the image")
+_pair(
+    "left",
+    "cam",
+    "camera-x of B's centre minus A's (m)",
+    "lateral_margin, image_margin",
+    "A's centre is left of B's in the camera frame by more than the margin, and the image agrees",
+)
+_mirror(
+    "right",
+    "left",
+    "cam",
+    "camera-x of A's centre minus B's (m)",
+    "lateral_margin, image_margin",
+    "mirror of left: A's centre is right of B's",
+)
+_pair(
+    "front",
+    "cam",
+    "nearest-face depth of B minus A's (m)",
+    "depth_margin",
+    "A's nearest face is nearer the camera than B's by the margin (centre depths agree)",
+)
+_mirror(
+    "behind",
+    "front",
+    "cam",
+    "nearest-face depth of A minus B's (m)",
+    "depth_margin",
+    "mirror of front: A is farther from the camera than B",
+)
+_pair(
+    "above_image",
+    "img",
+    "image-y of B's mask centroid minus A's (fraction of height)",
+    "image_margin",
+    "A's 2D centre is higher in the image than B's",
+)
+_mirror(
+    "below_image",
+    "above_image",
+    "img",
+    "image-y of A's mask centroid minus B's (fraction of height)",
+    "image_margin",
+    "mirror of above (image): A's 2D centre is lower in the image",
+)

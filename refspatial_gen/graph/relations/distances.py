@@ -8,10 +8,10 @@ attributes for questions that ask for them.
 
 from __future__ import annotations
 
-import numpy as np
-
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from refspatial_gen.core.model import RelationFact
 from refspatial_gen.graph.constants import Thresholds
@@ -40,6 +40,7 @@ def _distance(geom):
         d = g.surface_distance
         codes = np.full(d.shape, TRUE, dtype=np.int8)
         return d, codes, np.maximum(0.01, g.th.quantity_tolerance * d)
+
     return cached(geom, "dist:distance", f)
 
 
@@ -48,6 +49,7 @@ def _touching(geom):
         d = g.surface_distance
         th = g.th
         return d, band_matrix(d, th.touch_distance, th.touch_distance + th.touch_band), th.touch_band
+
     return cached(geom, "dist:touching", f)
 
 
@@ -58,6 +60,7 @@ def _far_from(geom):
         # far_from holds when d is large: reuse band_matrix on the negated distance
         codes = band_matrix(-d, -(th.far_from_distance + th.far_from_band), -(th.far_from_distance - th.far_from_band))
         return d, codes, th.far_from_band
+
     return cached(geom, "dist:far_from", f)
 
 
@@ -72,6 +75,7 @@ def _next_to(geom):
         smaller = np.minimum(g.height[:, None], g.height[None, :])
         codes[(codes == TRUE) & (common < 0.3 * smaller)] = UNDECIDED
         return d, codes, th.distance_margin
+
     return cached(geom, "dist:next_to", f)
 
 
@@ -81,6 +85,7 @@ def _sym_eval(matrices, rel: str):
         v, codes, m = matrices(geom)
         mm = float(np.broadcast_to(np.asarray(m, float), v.shape)[i, j])
         return fact(rel, (a, b), codes[i, j] if i != j else UNDECIDED, v[i, j], mm)
+
     return evaluate
 
 
@@ -100,6 +105,7 @@ def _close_eval(mirror: bool):
         d = geom.surface_distance
         holds, v = close_value(d[i, k], d[j, k], geom.th.distance_margin)
         return RelationFact("far" if mirror else "close", (a, b, c), holds, v, geom.th.distance_margin)
+
     return evaluate
 
 
@@ -125,8 +131,9 @@ def _depth_stored(geom: SceneGeom) -> list[RelationFact]:
     return [_depth_fact(geom, i) for i in np.argsort(geom.ids, kind="stable")]
 
 
-def _stored(rel: str, matrices: Callable[[SceneGeom], Matrices], sparse: bool
-            ) -> Callable[[SceneGeom], list[RelationFact]]:
+def _stored(
+    rel: str, matrices: Callable[[SceneGeom], Matrices], sparse: bool
+) -> Callable[[SceneGeom], list[RelationFact]]:
     return lambda geom: pair_facts(rel, geom, *matrices(geom), only={TRUE, UNDECIDED} if sparse else None)
 
 
@@ -147,33 +154,120 @@ def _close_cell(t: RelationTables, args: tuple[Any, ...]) -> Cell | None:
 
 
 _INF = float("inf")
-register(Relation("close", "distances", "world", 3, "d(B, C) minus d(A, C), surface distances (m)",
-                  "distance_margin", "A is closer to the anchor C than B is (nearest-surface distances)",
-                  storage="derived", needs=G, qa="anchored", evaluate=_close_eval(False), cell=_close_cell))
-register(Relation("far", "distances", "world", 3, "d(A, C) minus d(B, C), surface distances (m)", "distance_margin",
-                  "mirror of close: A is farther from the anchor C than B is", storage="derived", mirror_of="close",
-                  needs=G, qa="anchored", evaluate=_close_eval(True)))
-register(Relation("depth", "distances", "cam", 1, "median metric depth of A's visible pixels (m)", "quantity_tolerance",
-                  "the metric distance from the camera to the object (undecided when it spans more depth than the "
-                  "tolerance)", storage="unary", evaluate=_depth_eval, stored=_depth_stored, cell=stored_cell("depth")))
-register(Relation("distance", "distances", "world", 2, "minimum surface-to-surface distance (m)", "quantity_tolerance",
-                  "metric distance between two objects' nearest surfaces (centre distance in node attributes)",
-                  storage="symmetric", needs=G, evaluate=_sym_eval(_distance, "distance"),
-                  stored=_stored("distance", _distance, False), cell=symmetric_cell("distance", None)))
+register(
+    Relation(
+        "close",
+        "distances",
+        "world",
+        3,
+        "d(B, C) minus d(A, C), surface distances (m)",
+        "distance_margin",
+        "A is closer to the anchor C than B is (nearest-surface distances)",
+        storage="derived",
+        needs=G,
+        qa="anchored",
+        evaluate=_close_eval(False),
+        cell=_close_cell,
+    )
+)
+register(
+    Relation(
+        "far",
+        "distances",
+        "world",
+        3,
+        "d(A, C) minus d(B, C), surface distances (m)",
+        "distance_margin",
+        "mirror of close: A is farther from the anchor C than B is",
+        storage="derived",
+        mirror_of="close",
+        needs=G,
+        qa="anchored",
+        evaluate=_close_eval(True),
+    )
+)
+register(
+    Relation(
+        "depth",
+        "distances",
+        "cam",
+        1,
+        "median metric depth of A's visible pixels (m)",
+        "quantity_tolerance",
+        "the metric distance from the camera to the object (undecided when it spans more depth than the tolerance)",
+        storage="unary",
+        evaluate=_depth_eval,
+        stored=_depth_stored,
+        cell=stored_cell("depth"),
+    )
+)
+register(
+    Relation(
+        "distance",
+        "distances",
+        "world",
+        2,
+        "minimum surface-to-surface distance (m)",
+        "quantity_tolerance",
+        "metric distance between two objects' nearest surfaces (centre distance in node attributes)",
+        storage="symmetric",
+        needs=G,
+        evaluate=_sym_eval(_distance, "distance"),
+        stored=_stored("distance", _distance, False),
+        cell=symmetric_cell("distance", None),
+    )
+)
 
 
-def _contact(rid: str, matrices: Callable[[SceneGeom], Matrices], absent: Callable[[Thresholds], float],
-             margin: str, definition: str, spec: bool = True) -> None:
+def _contact(
+    rid: str,
+    matrices: Callable[[SceneGeom], Matrices],
+    absent: Callable[[Thresholds], float],
+    margin: str,
+    definition: str,
+    spec: bool = True,
+) -> None:
     """A sparse symmetric distance relation: absent instances of a pair with a distance are False."""
-    register(Relation(rid, "distances", "world", 2, "minimum surface distance (m)", margin, definition,
-                      storage="sparse", needs=G, spec=spec, qa="pairwise", evaluate=_sym_eval(matrices, rid),
-                      stored=_stored(rid, matrices, True), cell=symmetric_cell(rid, absent),
-                      table=symmetric_table(rid)))
+    register(
+        Relation(
+            rid,
+            "distances",
+            "world",
+            2,
+            "minimum surface distance (m)",
+            margin,
+            definition,
+            storage="sparse",
+            needs=G,
+            spec=spec,
+            qa="pairwise",
+            evaluate=_sym_eval(matrices, rid),
+            stored=_stored(rid, matrices, True),
+            cell=symmetric_cell(rid, absent),
+            table=symmetric_table(rid),
+        )
+    )
 
 
-_contact("touching", _touching, lambda th: th.touch_band, "touch_distance, touch_band",
-         "the objects' surfaces are within the touch distance (source-dependent: 1 cm sim, 5 cm scans)")
-_contact("far_from", _far_from, lambda th: th.far_from_band, "far_from_distance, far_from_band",
-         "the objects' nearest surfaces are farther apart than the scene-scaled distance (0.3 m tabletop, 1 m room)")
-_contact("next_to", _next_to, lambda th: th.distance_margin, "next_to_distance, distance_margin",
-         "the objects stand side by side (sharing a height range) with a small gap", spec=False)
+_contact(
+    "touching",
+    _touching,
+    lambda th: th.touch_band,
+    "touch_distance, touch_band",
+    "the objects' surfaces are within the touch distance (source-dependent: 1 cm sim, 5 cm scans)",
+)
+_contact(
+    "far_from",
+    _far_from,
+    lambda th: th.far_from_band,
+    "far_from_distance, far_from_band",
+    "the objects' nearest surfaces are farther apart than the scene-scaled distance (0.3 m tabletop, 1 m room)",
+)
+_contact(
+    "next_to",
+    _next_to,
+    lambda th: th.distance_margin,
+    "next_to_distance, distance_margin",
+    "the objects stand side by side (sharing a height range) with a small gap",
+    spec=False,
+)

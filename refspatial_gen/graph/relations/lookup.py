@@ -11,7 +11,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from refspatial_gen.graph.constants import Thresholds
-from refspatial_gen.graph.relations.base import Cell, CellRule, Rows, T_FALSE, T_MISSING, T_UNDECIDED
+from refspatial_gen.graph.relations.base import T_FALSE, T_MISSING, T_UNDECIDED, Cell, CellRule, Rows
 
 if TYPE_CHECKING:
     from refspatial_gen.graph.tables import RelationTables
@@ -123,8 +123,9 @@ def false_absent(margin: Margin) -> Callable[[RelationTables, tuple[Any, ...]], 
     return absent
 
 
-def sparse_table(rid: str, absent_row: Callable[[RelationTables, int], int] | None = None
-                 ) -> Callable[[RelationTables], Rows]:
+def sparse_table(
+    rid: str, absent_row: Callable[[RelationTables, int], int] | None = None
+) -> Callable[[RelationTables], Rows]:
     """Absent instances False (or `absent_row(t, object id)` for the whole row of that first argument)."""
 
     def table(t: RelationTables) -> Rows:

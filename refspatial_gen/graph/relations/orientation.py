@@ -7,10 +7,10 @@ that points up or down (|z| > 0.7) has no horizontal meaning and leaves these re
 
 from __future__ import annotations
 
-import numpy as np
-
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from refspatial_gen.core.model import RelationFact
 from refspatial_gen.graph.relations.base import FRONT_SOURCES, T_FALSE, T_UNDECIDED, Cell, Relation, register
@@ -115,6 +115,7 @@ def _facing_matrix(geom, sign: float):
         np.fill_diagonal(codes, UNDECIDED)
         v[~ok, :] = np.pi
         return v, codes, th.facing_margin
+
     return cached(geom, f"orient:facing{sign:+.0f}", f)
 
 
@@ -171,8 +172,13 @@ def _facing_stored(rel: str, sign: float) -> Callable[[SceneGeom], list[Relation
         order = _ordered_ids(geom)
         fr = [i for i in order if np.isfinite(horizontal_fronts(geom)[i]).all()]
         v, codes, m = _facing_matrix(geom, sign)
-        return [fact(rel, (int(geom.ids[i]), int(geom.ids[j])), codes[i, j], v[i, j], m)
-                for i in fr for j in order if i != j and codes[i, j] != FALSE]
+        return [
+            fact(rel, (int(geom.ids[i]), int(geom.ids[j])), codes[i, j], v[i, j], m)
+            for i in fr
+            for j in order
+            if i != j and codes[i, j] != FALSE
+        ]
+
     return stored
 
 
@@ -190,6 +196,7 @@ def _facing_eval(sign: float, rel: str):
         i, j = pos(geom, a), pos(geom, b)
         v, codes, m = _facing_matrix(geom, sign)
         return fact(rel, (a, b), codes[i, j], v[i, j], m)
+
     return evaluate
 
 
@@ -236,34 +243,103 @@ def _sector_cell(rel: str) -> Callable[[RelationTables, tuple[Any, ...]], Cell |
         d = t.distance(a, b)
         code = sector_codes(np.array(theta), m, np.array(d is not None and d > 1e-6))[rel]
         return Cell(holds_of(int(code)), float(theta), m)
+
     return cell
 
 
 F = ("gravity", "front")
-register(Relation("rotation_horizontal", "orientation", "cam", 1,
-                  "atan2(x, z) of A's centre in the camera frame (rad, + = right)", "rotation_margin",
-                  "angle the camera must yaw to face the object", storage="unary", evaluate=_unary_eval(_rotation_h),
-                  stored=_rotation_stored(_rotation_h), cell=stored_cell("rotation_horizontal")))
-register(Relation("rotation_vertical", "orientation", "cam", 1,
-                  "elevation of A's centre over the levelled camera's forward axis (rad, + = up)", "rotation_margin",
-                  "angle the camera must pitch (in a gravity-levelled camera) to face the object", storage="unary",
-                  needs=("gravity",), world_only=False, evaluate=_unary_eval(_rotation_v),
-                  stored=_rotation_stored(_rotation_v), cell=stored_cell("rotation_vertical")))
-register(Relation("angle", "orientation", "world", 2, "angle between the horizontal front directions (rad)",
-                  "angle_margin", "angle between two objects' front directions", sources=FRONT_SOURCES,
-                  storage="derived", needs=F, evaluate=_angle_eval, cell=_angle_cell))
-for _rel, _sign, _what in (("facing", 1.0, "B lies within a 30-degree cone around A's front direction, or A's front "
-                                        "ray hits B's footprint"),
-                           ("facing_away", -1.0, "same test as facing with A's back direction: A turns its back to B")):
-    register(Relation(_rel, "orientation", "obj", 2,
-                      f"angle between A's {'front' if _sign > 0 else 'back'} and the direction to B (rad)",
-                      "facing_cone, facing_margin", _what, sources=FRONT_SOURCES, storage="sparse", needs=F,
-                      qa="pairwise", key_step="Orientation", evaluate=_facing_eval(_sign, _rel), stored=_facing_stored(_rel, _sign),
-                      cell=sparse_cell(_rel, _facing_absent), table=sparse_table(_rel, _facing_row)))
-for _rel, _what in (("obj_front", "in front of"), ("obj_left", "to the left of"), ("obj_behind", "behind"),
-                    ("obj_right", "to the right of")):
-    register(Relation(_rel, "object_frame", "obj", 2,
-                      "bearing of A's centre in B's own frame (rad, 0 = B's front, + = B's left)", "sector_margin",
-                      f"A is {_what} B from B's own point of view (90-degree sector around B's front axes)",
-                      sources=FRONT_SOURCES, storage="derived", needs=F, spec=False, evaluate=_sector_eval(_rel),
-                      cell=_sector_cell(_rel)))
+register(
+    Relation(
+        "rotation_horizontal",
+        "orientation",
+        "cam",
+        1,
+        "atan2(x, z) of A's centre in the camera frame (rad, + = right)",
+        "rotation_margin",
+        "angle the camera must yaw to face the object",
+        storage="unary",
+        evaluate=_unary_eval(_rotation_h),
+        stored=_rotation_stored(_rotation_h),
+        cell=stored_cell("rotation_horizontal"),
+    )
+)
+register(
+    Relation(
+        "rotation_vertical",
+        "orientation",
+        "cam",
+        1,
+        "elevation of A's centre over the levelled camera's forward axis (rad, + = up)",
+        "rotation_margin",
+        "angle the camera must pitch (in a gravity-levelled camera) to face the object",
+        storage="unary",
+        needs=("gravity",),
+        world_only=False,
+        evaluate=_unary_eval(_rotation_v),
+        stored=_rotation_stored(_rotation_v),
+        cell=stored_cell("rotation_vertical"),
+    )
+)
+register(
+    Relation(
+        "angle",
+        "orientation",
+        "world",
+        2,
+        "angle between the horizontal front directions (rad)",
+        "angle_margin",
+        "angle between two objects' front directions",
+        sources=FRONT_SOURCES,
+        storage="derived",
+        needs=F,
+        evaluate=_angle_eval,
+        cell=_angle_cell,
+    )
+)
+for _rel, _sign, _what in (
+    ("facing", 1.0, "B lies within a 30-degree cone around A's front direction, or A's front ray hits B's footprint"),
+    ("facing_away", -1.0, "same test as facing with A's back direction: A turns its back to B"),
+):
+    register(
+        Relation(
+            _rel,
+            "orientation",
+            "obj",
+            2,
+            f"angle between A's {'front' if _sign > 0 else 'back'} and the direction to B (rad)",
+            "facing_cone, facing_margin",
+            _what,
+            sources=FRONT_SOURCES,
+            storage="sparse",
+            needs=F,
+            qa="pairwise",
+            key_step="Orientation",
+            evaluate=_facing_eval(_sign, _rel),
+            stored=_facing_stored(_rel, _sign),
+            cell=sparse_cell(_rel, _facing_absent),
+            table=sparse_table(_rel, _facing_row),
+        )
+    )
+for _rel, _what in (
+    ("obj_front", "in front of"),
+    ("obj_left", "to the left of"),
+    ("obj_behind", "behind"),
+    ("obj_right", "to the right of"),
+):
+    register(
+        Relation(
+            _rel,
+            "object_frame",
+            "obj",
+            2,
+            "bearing of A's centre in B's own frame (rad, 0 = B's front, + = B's left)",
+            "sector_margin",
+            f"A is {_what} B from B's own point of view (90-degree sector around B's front axes)",
+            sources=FRONT_SOURCES,
+            storage="derived",
+            needs=F,
+            spec=False,
+            evaluate=_sector_eval(_rel),
+            cell=_sector_cell(_rel),
+        )
+    )

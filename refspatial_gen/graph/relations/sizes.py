@@ -4,10 +4,10 @@ max(absolute, relative x larger), so "taller" is only asked when a person would 
 
 from __future__ import annotations
 
-import numpy as np
-
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from refspatial_gen.graph.relations.base import HOLDS_OF_CODE, T_MISSING, Cell, CellRule, Relation, Rows, register
 from refspatial_gen.graph.relations.common import cached, decide_matrix, pair_evaluator
@@ -40,8 +40,11 @@ def _wide(geom):
 
 
 # node attribute and thresholds each comparison reads (a stored graph derives these relations from them)
-DERIVED = {"tall": ("height", "height_margin_abs", "size_margin_rel"), "big": ("volume", None, "volume_margin_rel"),
-           "wide": ("width", "width_margin_abs", "size_margin_rel")}
+DERIVED = {
+    "tall": ("height", "height_margin_abs", "size_margin_rel"),
+    "big": ("volume", None, "volume_margin_rel"),
+    "wide": ("width", "width_margin_abs", "size_margin_rel"),
+}
 
 
 def _size_tables(t: RelationTables) -> dict[str, tuple[Rows, list[list[float]], list[list[float]]]] | None:
@@ -68,6 +71,7 @@ def _table(base: str) -> Callable[[RelationTables], Rows | None]:
     def table(t: RelationTables) -> Rows | None:
         tabs = t.shared("sizes", _size_tables)
         return None if tabs is None else tabs[base][0]
+
     return table
 
 
@@ -79,6 +83,7 @@ def _cell(base: str) -> CellRule:
         codes, vals, margins = tabs[base]
         i, j = t.pos[args[0]], t.pos[args[1]]
         return Cell(HOLDS_OF_CODE[codes[i][j]], vals[i][j], margins[i][j])
+
     return cell
 
 
@@ -86,25 +91,78 @@ G = ("gravity",)
 
 
 def _size(rid: str, value: str, margin: str, definition: str) -> None:
-    register(Relation(rid, "sizes", "world", 2, value, margin, definition, storage="derived", needs=G,
-                      qa="ordered", key_step="Size", evaluate=pair_evaluator(_MATRICES[rid], rid), cell=_cell(rid),
-                      table=_table(rid)))
+    register(
+        Relation(
+            rid,
+            "sizes",
+            "world",
+            2,
+            value,
+            margin,
+            definition,
+            storage="derived",
+            needs=G,
+            qa="ordered",
+            key_step="Size",
+            evaluate=pair_evaluator(_MATRICES[rid], rid),
+            cell=_cell(rid),
+            table=_table(rid),
+        )
+    )
 
 
 def _mirror(rid: str, of: str, value: str, margin: str, definition: str) -> None:
-    register(Relation(rid, "sizes", "world", 2, value, margin, definition, mirror_of=of, storage="derived",
-                      needs=G, qa="ordered", key_step="Size", evaluate=pair_evaluator(_MATRICES[of], of, rid)))
+    register(
+        Relation(
+            rid,
+            "sizes",
+            "world",
+            2,
+            value,
+            margin,
+            definition,
+            mirror_of=of,
+            storage="derived",
+            needs=G,
+            qa="ordered",
+            key_step="Size",
+            evaluate=pair_evaluator(_MATRICES[of], of, rid),
+        )
+    )
 
 
 _MATRICES = {"tall": _tall, "big": _big, "wide": _wide}
-_size("tall", "vertical extent of A minus B's (m)", "height_margin_abs, size_margin_rel",
-      "A's vertical extent is greater than B's")
-_mirror("short", "tall", "vertical extent of B minus A's (m)", "height_margin_abs, size_margin_rel",
-        "mirror of tall: A's vertical extent is smaller than B's")
+_size(
+    "tall",
+    "vertical extent of A minus B's (m)",
+    "height_margin_abs, size_margin_rel",
+    "A's vertical extent is greater than B's",
+)
+_mirror(
+    "short",
+    "tall",
+    "vertical extent of B minus A's (m)",
+    "height_margin_abs, size_margin_rel",
+    "mirror of tall: A's vertical extent is smaller than B's",
+)
 _size("big", "box volume of A minus B's (m^3)", "volume_margin_rel", "A's box volume is greater than B's")
-_mirror("small", "big", "box volume of B minus A's (m^3)", "volume_margin_rel",
-        "mirror of big: A's box volume is smaller than B's")
-_size("wide", "larger horizontal extent of A minus B's (m)", "width_margin_abs, size_margin_rel",
-      "A's larger horizontal extent exceeds B's")
-_mirror("thin", "wide", "larger horizontal extent of B minus A's (m)", "width_margin_abs, size_margin_rel",
-        "mirror of wide: A's larger horizontal extent is smaller than B's")
+_mirror(
+    "small",
+    "big",
+    "box volume of B minus A's (m^3)",
+    "volume_margin_rel",
+    "mirror of big: A's box volume is smaller than B's",
+)
+_size(
+    "wide",
+    "larger horizontal extent of A minus B's (m)",
+    "width_margin_abs, size_margin_rel",
+    "A's larger horizontal extent exceeds B's",
+)
+_mirror(
+    "thin",
+    "wide",
+    "larger horizontal extent of B minus A's (m)",
+    "width_margin_abs, size_margin_rel",
+    "mirror of wide: A's larger horizontal extent is smaller than B's",
+)

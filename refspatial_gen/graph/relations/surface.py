@@ -7,10 +7,10 @@ or edge whose name would be ambiguous (a table seen diagonally) gets no label an
 
 from __future__ import annotations
 
-import numpy as np
-
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from refspatial_gen.core.model import RelationFact
 from refspatial_gen.graph.relations.base import SURFACE_SOURCES, Cell, Relation, register
@@ -27,6 +27,7 @@ CORNER_SEPARATION = 0.15  # corner coordinates must differ from the centre by th
 
 def surface_labels(geom) -> dict[str, dict]:
     """{surface id: {"polygon": (4,2), "corners": {label: xy}, "edges": {label: (a, b)}}}."""
+
     def f(g):
         out = {}
         axes = g.camera_axes_horizontal()
@@ -41,7 +42,7 @@ def surface_labels(geom) -> dict[str, dict]:
             lat, dep = (poly - c) @ right[:2], (poly - c) @ fwd[:2]
             ext_l, ext_d = np.ptp(lat), np.ptp(dep)
             ok = (np.abs(lat) > CORNER_SEPARATION * ext_l) & (np.abs(dep) > CORNER_SEPARATION * ext_d)
-            names = [("far" if d > 0 else "near") + "-" + ("right" if l > 0 else "left") for l, d in zip(lat, dep)]
+            names = [("far" if d > 0 else "near") + "-" + ("right" if lt > 0 else "left") for lt, d in zip(lat, dep)]
             if ok.all() and len(set(names)) == 4:
                 entry["corners"] = {names[k]: poly[k] for k in range(4)}
             for k in range(4):
@@ -49,10 +50,16 @@ def surface_labels(geom) -> dict[str, dict]:
                 e = b - a
                 n = np.array([e[1], -e[0]]) / (np.linalg.norm(e) + 1e-12)  # outward normal of a CCW polygon
                 ang = np.arctan2(n @ fwd[:2], n @ right[:2])  # 0 = right, 90 = far, 180 = left, -90 = near
-                for label, centre in (("right edge", 0.0), ("far edge", np.pi / 2), ("left edge", np.pi), ("near edge", -np.pi / 2)):
+                for label, centre in (
+                    ("right edge", 0.0),
+                    ("far edge", np.pi / 2),
+                    ("left edge", np.pi),
+                    ("near edge", -np.pi / 2),
+                ):
                     if abs((ang - centre + np.pi) % (2 * np.pi) - np.pi) < EDGE_AXIS_TOLERANCE:
                         entry["edges"][label] = (a, b)
         return out
+
     return cached(geom, "surface:labels", f)
 
 
@@ -82,6 +89,7 @@ def _footprint_to_edge(fp: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
 def _corner_edge(geom):
     """{(rel, object pos, surface id, label): (code, value)} for objects whose support chain ends on a
     surface with labels; False instances omitted."""
+
     def f(g):
         th = g.th
         _, roots = get_supports(g)
@@ -97,11 +105,15 @@ def _corner_edge(geom):
                 vs = _footprint_to_points(fp, np.array([p for _, p in corners]))
                 for (lab, _), v in zip(corners, vs):
                     v = float(v)
-                    out[("corner", i, sid, lab)] = (_band(v, th.corner_reach, th.corner_reach + th.surface_band_margin), v)
+                    out[("corner", i, sid, lab)] = (
+                        _band(v, th.corner_reach, th.corner_reach + th.surface_band_margin),
+                        v,
+                    )
             for lab, (a, b) in sorted(labels[sid]["edges"].items()):
                 v = _footprint_to_edge(fp, a, b)
                 out[("edge", i, sid, lab)] = (_band(v, th.edge_band, th.edge_band + th.surface_band_margin), v)
         return out
+
     return cached(geom, "surface:corner_edge", f)
 
 
@@ -115,8 +127,11 @@ def _spot_stored(rel: str) -> Callable[[SceneGeom], list[RelationFact]]:
         for key in sorted((k for k in items if k[0] == rel), key=lambda k: (int(geom.ids[k[1]]), k[2], k[3])):
             code, v = items[key]
             if code in (TRUE, UNDECIDED):
-                out.append(RelationFact(rel, (int(geom.ids[key[1]]), key[2], key[3]),
-                                        None if code == UNDECIDED else True, v, m))
+                out.append(
+                    RelationFact(
+                        rel, (int(geom.ids[key[1]]), key[2], key[3]), None if code == UNDECIDED else True, v, m
+                    )
+                )
         return out
 
     return stored
@@ -151,8 +166,14 @@ def _eval(rel: str):
         code, v = _corner_edge(geom).get((rel, i, surface_id, label), (None, 0.0))
         if code is None:
             return RelationFact(rel, (a, surface_id, label), None, 0.0, geom.th.surface_band_margin)
-        return RelationFact(rel, (a, surface_id, label), None if code == UNDECIDED else bool(code == TRUE), v,
-                            geom.th.surface_band_margin)
+        return RelationFact(
+            rel,
+            (a, surface_id, label),
+            None if code == UNDECIDED else bool(code == TRUE),
+            v,
+            geom.th.surface_band_margin,
+        )
+
     return evaluate
 
 
@@ -185,15 +206,53 @@ def _free_instances(t: RelationTables) -> list[RelationFact]:
 
 S = ("gravity", "surface")
 for _rel, _value, _margin, _definition in (
-        ("corner", "distance from A's footprint to the labelled corner (m)", "corner_reach, surface_band_margin",
-         "A (or a free point) is within reach of a support surface's corner, named from the viewer (e.g. far-left)"),
-        ("edge", "inward distance from the labelled edge to A's footprint (m)", "edge_band, surface_band_margin",
-         "A (or a free point) lies within a band along one edge of a support surface (e.g. the right edge)")):
-    register(Relation(_rel, "surface", "world", 3, _value, _margin, _definition, sources=SURFACE_SOURCES,
-                      storage="sparse", needs=S, evaluate=_eval(_rel), stored=_spot_stored(_rel),
-                      cell=_spot_cell(_rel), domain=_spot_domain(_rel)))
-register(Relation("free_space", "surface", "world", 2, "visible free area of the region (m^2)",
-                  "free_min_area, visibility_tolerance",
-                  "a visible point on a support surface not covered by any object footprint (left/right/front/behind "
-                  "of, between, corner, edge)", sources=SURFACE_SOURCES, storage="region", needs=S, variadic=True,
-                  evaluate=_free_eval, cell=_free_cell, instances=_free_instances))
+    (
+        "corner",
+        "distance from A's footprint to the labelled corner (m)",
+        "corner_reach, surface_band_margin",
+        "A (or a free point) is within reach of a support surface's corner, named from the viewer (e.g. far-left)",
+    ),
+    (
+        "edge",
+        "inward distance from the labelled edge to A's footprint (m)",
+        "edge_band, surface_band_margin",
+        "A (or a free point) lies within a band along one edge of a support surface (e.g. the right edge)",
+    ),
+):
+    register(
+        Relation(
+            _rel,
+            "surface",
+            "world",
+            3,
+            _value,
+            _margin,
+            _definition,
+            sources=SURFACE_SOURCES,
+            storage="sparse",
+            needs=S,
+            evaluate=_eval(_rel),
+            stored=_spot_stored(_rel),
+            cell=_spot_cell(_rel),
+            domain=_spot_domain(_rel),
+        )
+    )
+register(
+    Relation(
+        "free_space",
+        "surface",
+        "world",
+        2,
+        "visible free area of the region (m^2)",
+        "free_min_area, visibility_tolerance",
+        "a visible point on a support surface not covered by any object footprint (left/right/front/behind "
+        "of, between, corner, edge)",
+        sources=SURFACE_SOURCES,
+        storage="region",
+        needs=S,
+        variadic=True,
+        evaluate=_free_eval,
+        cell=_free_cell,
+        instances=_free_instances,
+    )
+)

@@ -6,9 +6,9 @@ at B's top) counts as above whatever the centre heights; otherwise centres must 
 
 from __future__ import annotations
 
-import numpy as np
-
 from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from refspatial_gen.core.model import RelationFact
 from refspatial_gen.graph.relations.base import Cell, Relation, register
@@ -44,11 +44,13 @@ def _above(geom):
         codes[stacked.T & (v < 0)] = FALSE
         np.fill_diagonal(codes, UNDECIDED)
         return v, codes, g.th.vertical_margin
+
     return cached(geom, "vert:above", f)
 
 
 def _under(geom):
     """under[i, j]: i's top at or below j's bottom, with their footprints overlapping."""
+
     def f(g):
         tol = g.th.stack_tolerance
         below = g.hi[:, None, 2] <= g.lo[None, :, 2] + tol
@@ -59,6 +61,7 @@ def _under(geom):
         codes[below & (share >= 0.15) & (share < 0.3)] = UNDECIDED
         np.fill_diagonal(codes, FALSE)
         return v, codes, UNDER_MARGIN
+
     return cached(geom, "vert:under", f)
 
 
@@ -132,25 +135,90 @@ def _on_domain(t: RelationTables) -> list[tuple[Any, ...]]:
 
 
 UNDER_MARGIN = 0.15  # share of the smaller footprint: the undecided band of under (15-30%)
-register(Relation("above_world", "vertical", "world", 2, "centre height of A minus B's (m)",
-                  "vertical_margin, stack_tolerance",
-                  "A's bottom is at or above B's top, or A's centre is higher by the margin (gravity frame)",
-                  needs=G, qa="ordered", evaluate=pair_evaluator(_above, "above_world"), stored=_above_stored,
-                  cell=pair_cell("above_world"), table=pair_table("above_world")))
-register(Relation("below_world", "vertical", "world", 2, "centre height of B minus A's (m)",
-                  "vertical_margin, stack_tolerance",
-                  "mirror of above (world): A is lower than B in the gravity frame", mirror_of="above_world",
-                  needs=G, qa="ordered", evaluate=pair_evaluator(_above, "above_world", "below_world")))
-register(Relation("on", "support", "world", 2, "A's bottom minus the support's top (m)",
-                  "support_gap, support_overlap",
-                  "A rests on B (an object or a support surface id): B's top is within the gap of A's bottom and "
-                  "covers A's footprint", storage="sparse", needs=G, spec=False, qa="pairwise", evaluate=on_fact,
-                  stored=_on_stored, cell=_on_cell, domain=_on_domain))
-register(Relation("supported_by", "support", "world", 2, "A's bottom minus the support's top (m)",
-                  "support_gap, support_overlap", "same instances as on: A is supported by B", storage="derived",
-                  needs=G, spec=False, evaluate=supported_by_fact, cell=_on_cell, domain=_on_domain))
-register(Relation("under", "support", "world", 2, "share of the smaller footprint the two overlap",
-                  "stack_tolerance",
-                  "A's top is at or below B's bottom and their footprints overlap (30%; 15-30% undecided)",
-                  storage="sparse", needs=G, spec=False, evaluate=_under_eval, stored=_under_stored,
-                  cell=sparse_cell("under", false_absent(lambda th: UNDER_MARGIN)), table=sparse_table("under")))
+register(
+    Relation(
+        "above_world",
+        "vertical",
+        "world",
+        2,
+        "centre height of A minus B's (m)",
+        "vertical_margin, stack_tolerance",
+        "A's bottom is at or above B's top, or A's centre is higher by the margin (gravity frame)",
+        needs=G,
+        qa="ordered",
+        evaluate=pair_evaluator(_above, "above_world"),
+        stored=_above_stored,
+        cell=pair_cell("above_world"),
+        table=pair_table("above_world"),
+    )
+)
+register(
+    Relation(
+        "below_world",
+        "vertical",
+        "world",
+        2,
+        "centre height of B minus A's (m)",
+        "vertical_margin, stack_tolerance",
+        "mirror of above (world): A is lower than B in the gravity frame",
+        mirror_of="above_world",
+        needs=G,
+        qa="ordered",
+        evaluate=pair_evaluator(_above, "above_world", "below_world"),
+    )
+)
+register(
+    Relation(
+        "on",
+        "support",
+        "world",
+        2,
+        "A's bottom minus the support's top (m)",
+        "support_gap, support_overlap",
+        "A rests on B (an object or a support surface id): B's top is within the gap of A's bottom and "
+        "covers A's footprint",
+        storage="sparse",
+        needs=G,
+        spec=False,
+        qa="pairwise",
+        evaluate=on_fact,
+        stored=_on_stored,
+        cell=_on_cell,
+        domain=_on_domain,
+    )
+)
+register(
+    Relation(
+        "supported_by",
+        "support",
+        "world",
+        2,
+        "A's bottom minus the support's top (m)",
+        "support_gap, support_overlap",
+        "same instances as on: A is supported by B",
+        storage="derived",
+        needs=G,
+        spec=False,
+        evaluate=supported_by_fact,
+        cell=_on_cell,
+        domain=_on_domain,
+    )
+)
+register(
+    Relation(
+        "under",
+        "support",
+        "world",
+        2,
+        "share of the smaller footprint the two overlap",
+        "stack_tolerance",
+        "A's top is at or below B's bottom and their footprints overlap (30%; 15-30% undecided)",
+        storage="sparse",
+        needs=G,
+        spec=False,
+        evaluate=_under_eval,
+        stored=_under_stored,
+        cell=sparse_cell("under", false_absent(lambda th: UNDER_MARGIN)),
+        table=sparse_table("under"),
+    )
+)

@@ -30,11 +30,23 @@ from refspatial_gen.qa.ops.base import (
 )
 
 OPS: Registry[Op] = Registry("op")
-for _name, _module in (("filter", "filter"), ("relate", "relate"), ("between", "between"),
-                       ("superlative", "superlative"), ("ordinal", "ordinal"), ("at", "at"), ("is_at", "is_at"),
-                       ("locate", "locate"), ("free_space", "free_space"), ("compare", "compare"),
-                       ("all", "all_of"), ("measure", "measure"), ("mark", "mark"), ("choose", "choose"),
-                       ("camera_turn", "camera_turn")):
+for _name, _module in (
+    ("filter", "filter"),
+    ("relate", "relate"),
+    ("between", "between"),
+    ("superlative", "superlative"),
+    ("ordinal", "ordinal"),
+    ("at", "at"),
+    ("is_at", "is_at"),
+    ("locate", "locate"),
+    ("free_space", "free_space"),
+    ("compare", "compare"),
+    ("all", "all_of"),
+    ("measure", "measure"),
+    ("mark", "mark"),
+    ("choose", "choose"),
+    ("camera_turn", "camera_turn"),
+):
     OPS.add(_name, f"refspatial_gen.qa.ops.{_module}:OP")
 
 
@@ -43,5 +55,22 @@ def allowed_relations(op: Op) -> tuple[str, ...]:
     return tuple(r for use in op.relation_uses for r in ids_by_use(use))
 
 
-__all__ = ["ANSWER_TYPES", "BOOL", "FREE_KINDS", "MARKS", "NUMBER", "OBJECT", "OPS", "OPTION", "POINT",
-           "REGION_KINDS", "SET", "SLOT_TYPES", "TURN_AXES", "Arg", "Op", "Recorded", "allowed_relations"]
+__all__ = [
+    "ANSWER_TYPES",
+    "BOOL",
+    "FREE_KINDS",
+    "MARKS",
+    "NUMBER",
+    "OBJECT",
+    "OPS",
+    "OPTION",
+    "POINT",
+    "REGION_KINDS",
+    "SET",
+    "SLOT_TYPES",
+    "TURN_AXES",
+    "Arg",
+    "Op",
+    "Recorded",
+    "allowed_relations",
+]

@@ -23,8 +23,7 @@ class All(Op):
     def run(self, st: Step, env: dict[str, Any], prev: Any, ctx: Context) -> Any:
         return all(resolve(st.args["of"], env, prev, ctx.idx))
 
-    def replay(self, st: Step, fn: StepFn, local: dict[str, Any], prev: Any, ctx: Context,
-               env: dict[str, Any]) -> Any:
+    def replay(self, st: Step, fn: StepFn, local: dict[str, Any], prev: Any, ctx: Context, env: dict[str, Any]) -> Any:
         """A dropped yes/no step (None) leaves the others to decide; none left: no answer."""
         vals = [local[r.value] for r in st.args["of"].value]
         vals = [v for v in vals if v is not None]

@@ -98,8 +98,7 @@ class Op:
 
         return set_in(st, local, prev, idx) if self.drop_to == "input" else None
 
-    def replay(self, st: Step, fn: StepFn, local: dict[str, Any], prev: Any, ctx: Context,
-               env: dict[str, Any]) -> Any:
+    def replay(self, st: Step, fn: StepFn, local: dict[str, Any], prev: Any, ctx: Context, env: dict[str, Any]) -> Any:
         """The step's value when a program is re-run for the degeneracy check (`env`: the instance)."""
         from refspatial_gen.qa.index import Reject
 

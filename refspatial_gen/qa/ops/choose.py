@@ -22,8 +22,12 @@ if TYPE_CHECKING:
 
 class Choose(Op):
     name = "choose"
-    args = {"options": Arg("options", True), "relation": Arg("relation", True), "anchor": Arg("object"),
-            "mode": Arg("mode", choices=("most", "which"))}
+    args = {
+        "options": Arg("options", True),
+        "relation": Arg("relation", True),
+        "anchor": Arg("object"),
+        "mode": Arg("mode", choices=("most", "which")),
+    }
     out = OPTION
     relation_uses = ("ordered", "pairwise", "anchored")
     doc = "pick the option that wins (mode most) or the only one that satisfies (mode which); 1 step + 2 with anchor"

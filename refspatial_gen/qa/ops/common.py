@@ -12,8 +12,12 @@ from refspatial_gen.qa.values import Context
 
 EMPTY, MARGIN, NO_FACT_R = Reject("empty"), Reject("margin"), Reject("no_fact")
 NO_NARROWING, BOUND = Reject("no_narrowing"), Reject("bound")
-NOT_UNIQUE, SAME_OBJECT, NO_ANCHOR, NO_POINT = (Reject("not_unique"), Reject("same_object"), Reject("no_anchor"),
-                                                Reject("no_point"))
+NOT_UNIQUE, SAME_OBJECT, NO_ANCHOR, NO_POINT = (
+    Reject("not_unique"),
+    Reject("same_object"),
+    Reject("no_anchor"),
+    Reject("no_point"),
+)
 EMPTY_SET: frozenset[int] = frozenset()
 
 

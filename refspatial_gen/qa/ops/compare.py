@@ -32,8 +32,12 @@ if TYPE_CHECKING:
 
 class Compare(Op):
     name = "compare"
-    args = {"relation": Arg("relation", True), "a": Arg("object", True), "b": Arg("object", True),
-            "anchor": Arg("object")}
+    args = {
+        "relation": Arg("relation", True),
+        "a": Arg("object", True),
+        "b": Arg("object", True),
+        "anchor": Arg("object"),
+    }
     out = BOOL
     relation_uses = ("ordered", "pairwise", "anchored")
     doc = "does relation(a, b[, anchor]) hold (2 steps, 3 with anchor)"

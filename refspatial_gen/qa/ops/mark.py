@@ -34,8 +34,7 @@ class Mark(Op):
         pick = ctx.rng.choice(len(s), size=n, replace=False)
         return tuple(s[int(k)] for k in pick)
 
-    def replay(self, st: Step, fn: StepFn, local: dict[str, Any], prev: Any, ctx: Context,
-               env: dict[str, Any]) -> Any:
+    def replay(self, st: Step, fn: StepFn, local: dict[str, Any], prev: Any, ctx: Context, env: dict[str, Any]) -> Any:
         return env[st.name]  # the drawn marks are part of the question
 
     def verify(self, run: Run, a: dict[str, Any], prev: Any, st: dict[str, Any]) -> Any:

@@ -33,7 +33,7 @@ class Ordinal(Op):
             raise Reject("rank")
         wins = {x: 0 for x in s}
         for i, x in enumerate(s):
-            for y in s[i + 1:]:
+            for y in s[i + 1 :]:
                 if idx.holds(rel, (x, y)):
                     wins[x] += 1
                 else:

@@ -7,7 +7,17 @@ from typing import TYPE_CHECKING, Any
 
 from refspatial_gen.graph.relations import REGISTRY
 from refspatial_gen.qa.ops.base import SET, Arg, Op
-from refspatial_gen.qa.ops.common import BOUND, EMPTY, MARGIN, NO_FACT_R, NO_NARROWING, bounded, name_of, resolve, set_in
+from refspatial_gen.qa.ops.common import (
+    BOUND,
+    EMPTY,
+    MARGIN,
+    NO_FACT_R,
+    NO_NARROWING,
+    bounded,
+    name_of,
+    resolve,
+    set_in,
+)
 from refspatial_gen.qa.program import Step, StepFn
 
 if TYPE_CHECKING:

@@ -6,7 +6,7 @@ from collections.abc import Collection
 from typing import TYPE_CHECKING, Any
 
 from refspatial_gen.qa.index import Reject
-from refspatial_gen.qa.ops.base import OBJECT, Arg, Op, Recorded
+from refspatial_gen.qa.ops.base import OBJECT, Arg, Op
 from refspatial_gen.qa.ops.common import anchored, resolve, set_in, winner
 from refspatial_gen.qa.program import Ref, Step
 
