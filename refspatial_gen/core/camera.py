@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -79,7 +80,7 @@ class Camera:
         ok = z > 0
         return self.cam_to_world(self.backproject(us[ok] + 0.5, vs[ok] + 0.5, z[ok]))
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return {
             "width": int(self.width),
             "height": int(self.height),
@@ -92,7 +93,7 @@ class Camera:
         }
 
     @classmethod
-    def from_json(cls, d: dict) -> Camera:
+    def from_json(cls, d: dict[str, Any]) -> Camera:
         return cls(
             d["width"],
             d["height"],

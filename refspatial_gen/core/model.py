@@ -16,7 +16,7 @@ from refspatial_gen.core.geometry import Box3D
 from refspatial_gen.core.mask import RLE
 
 
-def _vec(v) -> list[float] | None:
+def _vec(v: Any) -> list[float] | None:
     return None if v is None else [round(float(x), 6) for x in np.asarray(v).ravel()]
 
 
@@ -48,7 +48,7 @@ class ObjectInstance:
         f = self.box.rotation @ np.asarray(self.front, float)
         return f / np.linalg.norm(f)
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return {
             "id": int(self.id),
             "category": self.category,
@@ -65,7 +65,7 @@ class ObjectInstance:
         }
 
     @classmethod
-    def from_json(cls, d: dict) -> ObjectInstance:
+    def from_json(cls, d: dict[str, Any]) -> ObjectInstance:
         return cls(
             id=d["id"],
             category=d["category"],
@@ -99,7 +99,7 @@ class SupportSurface:
     def top_z(self) -> float:
         return self.box.top_z
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return {
             "id": self.id,
             "kind": self.kind,
@@ -109,7 +109,7 @@ class SupportSurface:
         }
 
     @classmethod
-    def from_json(cls, d: dict) -> SupportSurface:
+    def from_json(cls, d: dict[str, Any]) -> SupportSurface:
         return cls(d["id"], d["kind"], Box3D.from_json(d["box"]), d.get("object_id"), d.get("name"))
 
 
@@ -148,7 +148,7 @@ class Frame:
         if len(set(ids)) != len(ids):
             raise ValueError("duplicate object ids")
 
-    def meta_json(self) -> dict:
+    def meta_json(self) -> dict[str, Any]:
         """Everything but the pixel arrays."""
         return {
             "frame_id": self.frame_id,
@@ -161,7 +161,7 @@ class Frame:
         }
 
     @classmethod
-    def from_meta_json(cls, d: dict, rgb: np.ndarray, depth: np.ndarray) -> Frame:
+    def from_meta_json(cls, d: dict[str, Any], rgb: np.ndarray, depth: np.ndarray) -> Frame:
         return cls(
             frame_id=d["frame_id"],
             rgb=rgb,
@@ -186,7 +186,7 @@ class Node:
     point: tuple[float, float] | None = None  # normalised answer point (RefSpatial convention)
     support: str | None = None  # id of the supporting surface, or "obj:<id>"
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return {
             "object_id": int(self.object_id),
             "category": self.category,
@@ -197,7 +197,7 @@ class Node:
         }
 
     @classmethod
-    def from_json(cls, d: dict) -> Node:
+    def from_json(cls, d: dict[str, Any]) -> Node:
         return cls(
             d["object_id"],
             d["category"],
@@ -213,12 +213,12 @@ class RelationFact:
     """An evaluated relation. `holds` is None when the comparison is inside the margin (undecided)."""
 
     relation: str
-    args: tuple  # object ids (int) or surface ids (str), in the relation's argument order
+    args: tuple[Any, ...]  # object ids (int) or surface ids (str), in the relation's argument order
     holds: bool | None
     value: float  # the metric quantity the decision rests on (metres, radians, fraction, ...)
     margin: float
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return {
             "relation": self.relation,
             "args": list(self.args),
@@ -228,7 +228,7 @@ class RelationFact:
         }
 
     @classmethod
-    def from_json(cls, d: dict) -> RelationFact:
+    def from_json(cls, d: dict[str, Any]) -> RelationFact:
         return cls(d["relation"], tuple(d["args"]), d["holds"], d["value"], d["margin"])
 
 
@@ -238,7 +238,7 @@ class FreeSpaceRegion:
 
     surface_id: str
     kind: str  # "left_of", "right_of", "in_front_of", "behind", "between", "corner", "edge", ...
-    anchors: tuple  # object ids the region is defined relative to
+    anchors: tuple[Any, ...]  # object ids the region is defined relative to
     polygon_xy: list[tuple[float, float]]  # world-frame outline on the surface
     z: float
     area: float  # m^2
@@ -246,7 +246,7 @@ class FreeSpaceRegion:
     point: tuple[float, float]  # normalised image point
     label: str = ""  # e.g. "far-left corner", "right edge"
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return {
             "surface_id": self.surface_id,
             "kind": self.kind,
@@ -260,7 +260,7 @@ class FreeSpaceRegion:
         }
 
     @classmethod
-    def from_json(cls, d: dict) -> FreeSpaceRegion:
+    def from_json(cls, d: dict[str, Any]) -> FreeSpaceRegion:
         return cls(
             d["surface_id"],
             d["kind"],
@@ -290,7 +290,7 @@ class SceneGraph:
                 return n
         raise KeyError(object_id)
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return {
             "frame_id": self.frame_id,
             "nodes": [n.to_json() for n in self.nodes],
@@ -300,7 +300,7 @@ class SceneGraph:
         }
 
     @classmethod
-    def from_json(cls, d: dict) -> SceneGraph:
+    def from_json(cls, d: dict[str, Any]) -> SceneGraph:
         return cls(
             d["frame_id"],
             [Node.from_json(n) for n in d["nodes"]],
@@ -318,11 +318,11 @@ class KeyStep:
     phrase: str  # exact target phrase used in the trace
     value: list[float]  # normalised (x, y) | unit vector (camera frame) | metres
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return {"type": self.type, "phrase": self.phrase, "value": [round(float(v), 3) for v in self.value]}
 
     @classmethod
-    def from_json(cls, d: dict) -> KeyStep:
+    def from_json(cls, d: dict[str, Any]) -> KeyStep:
         return cls(d["type"], d["phrase"], list(d["value"]))
 
 
@@ -346,7 +346,7 @@ class QAPair:
     checks: list[str] = field(default_factory=list)  # names of the checks it passed
     targets: list[int] = field(default_factory=list)  # object ids the answer refers to (for verification)
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return {
             "qa_id": self.qa_id,
             "family": self.family,
@@ -366,7 +366,7 @@ class QAPair:
         }
 
     @classmethod
-    def from_json(cls, d: dict) -> QAPair:
+    def from_json(cls, d: dict[str, Any]) -> QAPair:
         return cls(
             d["qa_id"],
             d["family"],

@@ -53,7 +53,7 @@ def geometry(frame: Frame, config: dict[str, Any] | None = None) -> SceneGeom:
     return geom
 
 
-def _r(x, nd: int = 3):
+def _r(x: Any, nd: int = 3) -> Any:
     if isinstance(x, (list, tuple, np.ndarray)):
         return [_r(v, nd) for v in np.asarray(x, float).ravel()]
     return round(float(x), nd)

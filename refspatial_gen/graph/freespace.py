@@ -34,7 +34,7 @@ SIMPLIFY = 0.003  # m, stored outlines are simplified by this much (the checker 
 
 
 # ----------------------------------------------------------------------------- shared geometry
-def gravity_rotation(graph_or_geom) -> np.ndarray:
+def gravity_rotation(graph_or_geom: Any) -> np.ndarray:
     if isinstance(graph_or_geom, SceneGeom):
         return graph_or_geom.gravity.rotation
     g = graph_or_geom.meta.get("gravity", {})
@@ -156,7 +156,7 @@ def _view_polygon(geom: SceneGeom, z: float) -> Polygon | None:
     return shapely.convex_hull(shapely.multipoints(np.array(pts)))
 
 
-def _largest(g) -> Polygon | None:
+def _largest(g: Any) -> Polygon | None:
     if g is None or g.is_empty:
         return None
     if isinstance(g, Polygon):
@@ -226,7 +226,7 @@ def _region(
     graph_stub: SceneGraph,
     sid: str,
     kind: str,
-    anchors: tuple,
+    anchors: tuple[Any, ...],
     poly: Polygon,
     z: float,
     label: str,
@@ -336,7 +336,7 @@ def _surface_regions(
     for i, j in _between_pairs(geom, on_s):
         hull = shapely.convex_hull(shapely.MultiPoint(np.vstack([geom.footprints[i], geom.footprints[j]])))
         add("between", (int(geom.ids[i]), int(geom.ids[j])), hull)
-    spoly = lab.get("polygon")
+    spoly: Any = lab.get("polygon")
     for name, p in sorted(lab.get("corners", {}).items()):
         k = int(np.argmin(np.linalg.norm(spoly - p, axis=1)))
         e1 = spoly[(k + 1) % 4] - p
@@ -355,7 +355,7 @@ def _surface_regions(
 def _between_pairs(geom: SceneGeom, on_s: list[Any]) -> list[tuple[int, int]]:
     """Each object on the surface with its nearest neighbours there, at a gap a free spot fits in."""
     th = geom.th
-    pairs = set()
+    pairs: set[tuple[int, ...]] = set()
     for i in on_s:
         near = sorted((j for j in on_s if j != i), key=lambda j: (geom.surface_distance[i, j], int(geom.ids[j])))
         pairs.update(tuple(sorted((int(i), int(j)), key=lambda k: int(geom.ids[k]))) for j in near[:BETWEEN_NEIGHBOURS])

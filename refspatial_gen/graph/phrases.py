@@ -164,7 +164,7 @@ def _anchor_phrases(
             if s is None:
                 continue
             if s.kind == "object":
-                j = geom.index[s.ref]
+                j = geom.index[int(s.ref)]
                 if j not in simple:
                     continue
                 anchor = simple[j]
@@ -177,11 +177,11 @@ def _anchor_phrases(
                     and abs(geom.lo[o, 2] - geom.hi[j, 2]) <= 2 * geom.th.support_gap
                 ]
             else:
-                anchor = surf_names[s.ref]
+                anchor = surf_names[str(s.ref)]
                 near = [
                     o
                     for o in members
-                    if o != i and (supports[o] is None or supports[o].ref == s.ref or supports[o].kind == "object")
+                    if o != i and ((so := supports[o]) is None or so.ref == s.ref or so.kind == "object")
                 ]
             if not near:
                 out[i].append((3, f"the {cat} on {anchor}"))

@@ -72,7 +72,7 @@ class GraphIndex:
 
     def between_row(self, b: int, c: int) -> tuple[frozenset[int], frozenset[int]]:
         t = self.tables.table("between")
-        return (frozenset(), frozenset()) if t is None else t.row(b, c)  # type: ignore[no-any-return]
+        return (frozenset(), frozenset()) if t is None else t.row(b, c)
 
     def largest_between_row(self) -> int:
         t = self.tables.table("between")
@@ -81,7 +81,7 @@ class GraphIndex:
     def between_code(self, a: int, b: int, c: int) -> tuple[bool | None, float]:
         """(holds, t) of between(a, b, c) for three distinct known ids, without building a RelationFact."""
         t = self.tables.table("between")
-        return (False, 0.0) if t is None else t.code(a, b, c)  # type: ignore[no-any-return]
+        return (False, 0.0) if t is None else t.code(a, b, c)
 
     # ------------------------------------------------------------------ enumeration
     def instances(self, relation: str, decided_only: bool = True) -> Iterator[RelationFact]:

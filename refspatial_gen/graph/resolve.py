@@ -12,7 +12,9 @@ measured node attributes and stored distances).
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -42,16 +44,16 @@ class _Scene:
     colours: list[str | None]
     feats: dict[str, np.ndarray]  # img_x, near, height, volume
     tol: dict[str, float]
-    surfaces: dict[str, tuple[float, np.ndarray]]  # name -> (top z, CCW polygon)
-    dist: callable
-    on: callable  # on(i, anchor) -> bool where anchor is ("obj", j) or ("surface", name)
+    surfaces: dict[str, tuple[float, Any]]  # name -> (top z, the surface box; None from a stored graph)
+    dist: Callable[[int, int], float]
+    on: Callable[[int, Any], bool]  # on(i, anchor) -> bool where anchor is ("obj", j) or ("surface", name)
 
 
 def _norm(cat: str) -> str:
     return cat.replace("_", " ").strip().lower()
 
 
-def _tolerances(th: dict) -> dict[str, float]:
+def _tolerances(th: dict[str, Any]) -> dict[str, float]:
     return {
         "img_x": th["image_margin"] / 4,
         "near": th["depth_margin"] / 2,
@@ -99,7 +101,7 @@ def _from_frame(frame: Frame) -> _Scene:
     def dist(i: int, j: int) -> float:
         return box_distance(boxes[i], boxes[j], n=9)
 
-    def on(i: int, anchor) -> bool:
+    def on(i: int, anchor: Any) -> bool:
         bottom = boxes[i].aabb()[0][2]
         c = boxes[i].center
         if anchor[0] == "obj":
@@ -146,7 +148,7 @@ def _from_graph(graph: SceneGraph) -> _Scene:
     by_name = {str(e.get("name") or f"the {sid}").lower(): sid for sid, e in graph.meta.get("surfaces", {}).items()}
     sup = {pos[n.object_id]: n.support for n in nodes}
 
-    def on(i: int, anchor) -> bool:
+    def on(i: int, anchor: Any) -> bool:
         """Direct support as stored in the graph (the builder's support test)."""
         s = sup[i]
         if anchor[0] == "obj":
@@ -204,8 +206,7 @@ def _resolve(sc: _Scene, phrase: str) -> list[int]:
         return []
     body = p[4:]
     m = _REL.match(body)
-    if m and _base(sc, m["base"]) is not None:
-        members = _base(sc, m["base"])
+    if m and (members := _base(sc, m["base"])) is not None:
         anchor_text = m["anchor"]
         if m["rel"] == "on" and anchor_text in sc.surfaces:
             return [i for i in members if sc.on(i, ("surface", anchor_text))]
@@ -222,15 +223,15 @@ def _resolve(sc: _Scene, phrase: str) -> list[int]:
         target = d.min() if m["rel"] == "closest to" else d.max()
         return [members[k] for k in np.flatnonzero(_within(d, target, sc.tol["dist"]))]
     m = _ORD_SIDE.match(body)
-    if m and _base(sc, m["base"]) is not None:
-        return _superlative(sc, _base(sc, m["base"]), "img_x", m["side"] == "right", ORDINALS[m["ord"]])
+    if m and (base := _base(sc, m["base"])) is not None:
+        return _superlative(sc, base, "img_x", m["side"] == "right", ORDINALS[m["ord"]])
     m = _ORD_DEPTH.match(body)
-    if m and _base(sc, m["base"]) is not None:
-        return _superlative(sc, _base(sc, m["base"]), "near", m["dir"] == "farthest", ORDINALS[m["ord"]])
+    if m and (base := _base(sc, m["base"])) is not None:
+        return _superlative(sc, base, "near", m["dir"] == "farthest", ORDINALS[m["ord"]])
     head, _, rest = body.partition(" ")
-    if head in SUPERLATIVES and _base(sc, rest) is not None:
+    if head in SUPERLATIVES and (base := _base(sc, rest)) is not None:
         feat, largest = SUPERLATIVES[head]
-        return _superlative(sc, _base(sc, rest), feat, largest)
+        return _superlative(sc, base, feat, largest)
     members = _base(sc, body)
     return [] if members is None else members
 
@@ -241,7 +242,7 @@ def resolve_phrase(phrase: str, frame_or_graph: Frame | SceneGraph) -> list[int]
     return sorted(sc.ids[i] for i in _resolve(sc, phrase))
 
 
-def resolver(frame_or_graph: Frame | SceneGraph):
+def resolver(frame_or_graph: Frame | SceneGraph) -> Callable[[str], list[int]]:
     """A resolve function bound to one scene (measures the scene once; for checking many phrases)."""
     sc = _from_frame(frame_or_graph) if isinstance(frame_or_graph, Frame) else _from_graph(frame_or_graph)
     return lambda phrase: sorted(sc.ids[i] for i in _resolve(sc, phrase))

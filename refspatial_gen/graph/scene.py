@@ -11,6 +11,7 @@ camera quantities use the frame's own camera.
 from __future__ import annotations
 
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 
@@ -102,7 +103,7 @@ class SceneGeom:
         self.th = th
         self.gravity = gravity
         self.world_ok = gravity.known
-        self.cache: dict = {}  # per-frame results of relation groups (matrices), filled lazily
+        self.cache: dict[str, Any] = {}  # per-frame results of relation groups (matrices), filled lazily
         cam = frame.camera
         self.W, self.H = cam.width, cam.height
         objs = frame.objects
@@ -205,7 +206,7 @@ class SceneGeom:
         n = self.n
         t = (np.arange(6) + 0.5) / 6
         u, v = np.meshgrid(t, t, indexing="ij")
-        u, v = u.ravel(), v.ravel()
+        u, v = u.ravel(), v.ravel()  # type: ignore[assignment]
         f = self.footprints
         pts = (
             f[:, None, 0]

@@ -9,13 +9,15 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from refspatial_gen.core.model import Frame, SceneGraph
+from refspatial_gen.qa.config import QAConfig
 
 
-def default_config():
+def default_config() -> QAConfig:
     """The default recipe's qa section."""
     from refspatial_gen.qa.config import load_qa_config
     from refspatial_gen.yamlpos import load_yaml
@@ -40,9 +42,9 @@ def toy_graphs(n: int = 8, seed: int = 0) -> list[tuple[Frame, SceneGraph]]:
 def qa_throughput(
     graphs_and_frames: list[tuple[Frame, SceneGraph]] | None = None,
     seconds: float = 3.0,
-    config=None,
+    config: QAConfig | None = None,
     fresh_index: bool = True,
-) -> dict:
+) -> dict[str, Any]:
     """QA pairs per second on one core: generate_qa over cached (frame, graph) pairs for `seconds` of CPU
     time. `fresh_index` rebuilds the per-sample lookup index every time (the cost a run pays)."""
     from refspatial_gen.qa.generate import generate_qa, scene_index

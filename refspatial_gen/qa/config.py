@@ -98,7 +98,9 @@ class QAConfig:
         return [t for f in self.families for t in f.templates]
 
 
-def load_qa_config(section: dict | None, recipe_file: str, lines: dict[tuple, int], path: tuple = ("qa",)) -> QAConfig:
+def load_qa_config(
+    section: dict[str, Any] | None, recipe_file: str, lines: dict[tuple[Any, ...], int], path: tuple[Any, ...] = ("qa",)
+) -> QAConfig:
     """Validate the `qa:` section and compile every template file it names (once). Raises RecipeErrors."""
     errors: list[RecipeError] = []
     file = str(recipe_file)

@@ -10,7 +10,7 @@ What each step does is its op's business (qa/ops/); this module only walks progr
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from itertools import product
 from typing import Any
 
@@ -118,45 +118,45 @@ class Search:
     distinct objects. Every executed step costs one unit of budget.
     """
 
-    def __init__(self, t: Template, ctx: Context, budget: int, answers: frozenset | None = None) -> None:
+    def __init__(self, t: Template, ctx: Context, budget: int, answers: frozenset[Any] | None = None) -> None:
         """`answers`: the objects the caller would accept as the answer (None = any); a branch whose output
         set on the answer chain (answer_chain) holds none of them is dropped ("balance")."""
         self.t, self.ctx, self.budget, self.answers = t, ctx, budget, answers
         self.rejects: dict[str, int] = {}
-        self._cands: dict[str, list] = {}
+        self._cands: dict[str, list[Any]] = {}
         self._plan = t.program.search
-        self._lists: list[list | None] = [None] * len(self._plan)
+        self._lists: list[list[Any] | None] = [None] * len(self._plan)
 
-    def candidates(self, name: str) -> list:
+    def candidates(self, name: str) -> list[Any]:
         c = self._cands.get(name)
         if c is None:
             # the unshuffled list depends only on the slot's declaration and the frame: kept on the frame's
             # index under the declaration's signature, so templates declaring the same slot share it
             memo = self.ctx.idx.slot_memo
             mk = self.t.program.signatures[name]
-            base = memo.get(mk)
-            if base is None:
-                base = memo[mk] = tuple(slot_candidates(self.t, name, {}, self.ctx))
-            if len(base) < 2:
-                base = list(base)
+            unshuffled = memo.get(mk)
+            if unshuffled is None:
+                unshuffled = memo[mk] = tuple(slot_candidates(self.t, name, {}, self.ctx))
+            if len(unshuffled) < 2:
+                c = list(unshuffled)
             elif isinstance(self.ctx.rng, SampleRng):
-                base = self.ctx.rng.shuffled(base)
+                c = self.ctx.rng.shuffled(unshuffled)
             else:  # a numpy Generator (tests and callers outside generation)
-                base = [base[k] for k in self.ctx.rng.permutation(len(base))]
-            c = self._cands[name] = base
+                c = [unshuffled[k] for k in self.ctx.rng.permutation(len(unshuffled))]
+            self._cands[name] = c
         return c
 
-    def instances(self):
+    def instances(self) -> Iterator[dict[str, Any]]:
         """Every instance the search reaches, in search order (for tests; generation uses `first`)."""
-        found: list[dict] = []
+        found: list[dict[str, Any]] = []
 
-        def collect(env: dict) -> None:
+        def collect(env: dict[str, Any]) -> None:
             found.append(dict(env))
 
         self.first(collect)
         return iter(found)
 
-    def first(self, accept: Callable[[dict], Any]) -> Any:
+    def first(self, accept: Callable[[dict[str, Any]], Any]) -> Any:
         """Walk the bindings in search order and call `accept(env)` on each complete instance; return the first
         result that is not None (None when the budget or the space runs out). `env` is the search's own
         dict: accept must copy what it keeps. Plain recursion with a callback, not nested generators: a
@@ -164,7 +164,7 @@ class Search:
         self._accept = accept
         return self._walk(0, {}, None, frozenset())
 
-    def _walk(self, i: int, env: dict[str, Any], prev: Any, used: frozenset) -> Any:
+    def _walk(self, i: int, env: dict[str, Any], prev: Any, used: frozenset[Any]) -> Any:
         st, names, objs, tries, fn, on_chain = self._plan[i]
         ctx, rejects, out = self.ctx, self.rejects, st.name
         last = i + 1 == len(self._plan)

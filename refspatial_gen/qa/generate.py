@@ -45,7 +45,7 @@ class _IndexCache:
         while len(self._d) > self.size:
             self._d.popitem(last=False)
 
-    def pop(self, graph: SceneGraph, default=None):
+    def pop(self, graph: SceneGraph, default: SceneIndex | None = None) -> SceneIndex | None:
         e = self._d.pop(id(graph), None)
         return default if e is None or e[0] is not graph else e[1]
 
@@ -70,7 +70,7 @@ class Balancer:
         self.slack = slack
         self.yes_no = [0, 0]
         self.quadrants = [0, 0, 0, 0]
-        self._allowed: dict[tuple, frozenset | None] = {}
+        self._allowed: dict[tuple[Any, ...], frozenset[Any] | None] = {}
 
     def want_bool(self, rng: SampleRng) -> bool:
         if self.yes_no[0] != self.yes_no[1]:
@@ -84,7 +84,7 @@ class Balancer:
     def point_ok(self, p: tuple[float, float]) -> bool:
         return self.quadrants[self.quadrant(p)] <= min(self.quadrants) + self.slack
 
-    def allowed_answers(self, idx: SceneIndex) -> frozenset | None:
+    def allowed_answers(self, idx: SceneIndex) -> frozenset[Any] | None:
         """Objects whose answer point the quadrant balance accepts now (None: every object), so the search can
         drop branches that could only reach rejected answers."""
         key = (id(idx), tuple(self.quadrants))
@@ -97,7 +97,7 @@ class Balancer:
                 q = self.quadrants
                 hit = frozenset(i for i, p in idx.answer_points.items() if q[self.quadrant(p)] <= low)
             self._allowed[key] = hit
-        return hit
+        return hit  # type: ignore[return-value]
 
     def add(self, answer: Any) -> None:
         if isinstance(answer, bool):
@@ -142,7 +142,7 @@ def _generate(
     ]
     bal = Balancer(config.point_slack)
     out: list[QAPair] = []
-    seen: set = set()
+    seen: set[Any] = set()
     per_family: dict[str, int] = {}
     mv_count = 0
     exhausted: set[int] = set()
@@ -189,10 +189,10 @@ def _generate(
     return out
 
 
-_FAMILY_PLANS: dict[tuple[int, int], tuple] = {}
+_FAMILY_PLANS: dict[tuple[int, int], tuple[Any, ...]] = {}
 
 
-def _family_choices(fam: Any, config: QAConfig, exhausted: set[int], multiview: bool) -> tuple[list, list]:
+def _family_choices(fam: Any, config: QAConfig, exhausted: set[int], multiview: bool) -> tuple[list[Any], list[Any]]:
     """The family's templates a draw may pick now, with their weights (template weight x step mix): those with
     positive weight, not exhausted in this sample, multi-view ones only when a view pair is still wanted.
     The unfiltered lists are computed once per (family, config)."""
@@ -245,7 +245,7 @@ def _instantiate(
     rng: SampleRng,
     config: QAConfig,
     bal: Balancer,
-    seen: set,
+    seen: set[Any],
     frame_ids: list[str],
     qa_id: str,
     flip: bool = False,
@@ -267,7 +267,7 @@ def _instantiate(
     is_obj = t.answer_type == OBJECT
     idx = ctx.idx
 
-    def accept(env: dict) -> QAPair | None:
+    def accept(env: dict[str, Any]) -> QAPair | None:
         ans = env[last]
         if want is not None and ans is not want:
             return None
@@ -303,7 +303,7 @@ def _hashable(v: Any) -> Any:
     return (type(v).__name__, id(v))
 
 
-def _bind_text_only(t: Template, env: dict, ctx: Context) -> dict:
+def _bind_text_only(t: Template, env: dict[str, Any], ctx: Context) -> dict[str, Any]:
     out = {}
     for name in t.unbound:
         c = slot_candidates(t, name, env, ctx)

@@ -16,7 +16,7 @@ from itertools import accumulate
 from typing import Any
 
 from refspatial_gen.core.mask import denormalise_point
-from refspatial_gen.core.model import Frame, FreeSpaceRegion, SceneGraph
+from refspatial_gen.core.model import Frame, FreeSpaceRegion, Node, SceneGraph
 from refspatial_gen.graph.relations.base import HOLDS_OF_CODE, Cell
 from refspatial_gen.graph.tables import RelationTables
 
@@ -45,13 +45,13 @@ class SceneIndex:
         self.frame, self.graph = frame, graph
         self.W, self.H = frame.camera.width, frame.camera.height
         # one pass over the nodes fills the per-object tables (built for every sample: kept cheap)
-        nodes: dict = {}
+        nodes: dict[int, Node] = {}
         phrase: dict[int, str] = {}
         phrases: list[str] = []
         points: dict[int, tuple[float, float]] = {}
         category: dict[int, str] = {}
         color: dict[int, str | None] = {}
-        on: dict[int, frozenset] = {}
+        on: dict[int, frozenset[Any]] = {}
         for n in graph.nodes:
             i = n.object_id
             nodes[i] = n
@@ -78,7 +78,9 @@ class SceneIndex:
         self.has_front = {i: (i in self.objects and self.objects[i].front is not None) for i in self.ids}
         self.region_list: tuple[FreeSpaceRegion, ...] = tuple(graph.free_space)
         # (kind, anchors) -> the first region listed with them (reversed: later duplicates are overwritten)
-        self.regions: dict[tuple, FreeSpaceRegion] = {(r.kind, tuple(r.anchors)): r for r in reversed(self.region_list)}
+        self.regions: dict[tuple[Any, ...], FreeSpaceRegion] = {
+            (r.kind, tuple(r.anchors)): r for r in reversed(self.region_list)
+        }
         self.has_between_region = any(r.kind == "between" for r in self.region_list)
         labels = graph.meta.get("surfaces") or {}
         self.spots: tuple[tuple[str, str, str], ...] = tuple(
@@ -99,13 +101,13 @@ class SceneIndex:
         self._runs: dict[int, list[int]] = {}
         self._sizes: dict[int, tuple[float, float, float]] = {}
         self._key_points: dict[int, list[float]] = {}
-        self._cam_rows: list | None = None
-        self._region_rounded: dict[int, tuple] = {}
+        self._cam_rows: list[Any] | None = None
+        self._region_rounded: dict[int, tuple[Any, ...]] = {}
         self._has_true_spot: bool | None = None
         self._largest_between_row: int | None = None
         # executor: slot signature (executor.slot_signature) -> unshuffled candidates in this frame
-        self.slot_memo: dict[tuple, tuple] = {}
-        groups: dict = {}
+        self.slot_memo: dict[tuple[Any, ...], tuple[Any, ...]] = {}
+        groups: dict[tuple[str, Any], list[int]] = {}
         for i in self.ids:
             groups.setdefault(("category", category[i]), []).append(i)
             groups.setdefault(("color", color[i]), []).append(i)
@@ -139,7 +141,7 @@ class SceneIndex:
                 pos = self._pos
                 i, j = pos.get(args[1]), pos.get(args[0])  # cols[anchor][x] codes relation(x, anchor)
                 if i is not None and j is not None and i != j:
-                    c = cols[i][j]
+                    c = cols[i][j]  # type: ignore[index]
                     if c != 3:
                         return _HOLDS[c]
         f = self.fact(relation, args)
@@ -204,9 +206,9 @@ class SceneIndex:
                     f = fact(relation, (x, anchor))
                 if f is None:
                     missing.append(x)
-                elif f.holds is None:  # type: ignore[union-attr]
+                elif f.holds is None:  # type: ignore[attr-defined]
                     undecided.append(x)
-                elif f.holds:  # type: ignore[union-attr]
+                elif f.holds:  # type: ignore[attr-defined]
                     true.append(x)
         return frozenset(true), frozenset(undecided), frozenset(missing)
 
@@ -324,7 +326,7 @@ class SceneIndex:
             v = self._largest_between_row = 0 if table is None else table.largest
         return v
 
-    def region_rounded(self, region: FreeSpaceRegion) -> tuple[tuple, tuple]:
+    def region_rounded(self, region: FreeSpaceRegion) -> tuple[tuple[Any, ...], tuple[Any, ...]]:
         """A free-space region's polygon (5 decimals) and world point (6 decimals) as answers record them,
         rounded once per region and sample (callers copy before storing)."""
         hit = self._region_rounded.get(id(region))

@@ -106,10 +106,10 @@ class _Pool:
         q = (2 * pix[:, 0] >= W).astype(int) + 2 * (2 * pix[:, 1] >= H).astype(int)
         self.parts = [pix[q == k] for k in range(4)]
         self.counts = [0, 0, 0, 0]
-        self.used: set = set()
+        self.used: set[Any] = set()
 
     def pick(self, rng: np.random.Generator, n: int) -> list[tuple[tuple[float, float], tuple[int, int]]]:
-        out: list = []
+        out: list[Any] = []
         for _ in range(8 * n):
             if len(out) >= n:
                 break
@@ -163,7 +163,6 @@ def point_depth_qa(
 
 
 def _make(frame: Frame, kind: str, pool: _Pool, rng: np.random.Generator, qa_id: str) -> QAPair | None:
-    d = frame.depth
     size = (frame.camera.width, frame.camera.height)
     base: dict[str, Any] = dict(
         qa_id=qa_id,
@@ -174,56 +173,73 @@ def _make(frame: Frame, kind: str, pool: _Pool, rng: np.random.Generator, qa_id:
         checks=["smooth_depth", "outside_margin"],
     )
     if kind == "depth":
-        got = pool.pick(rng, 1)
-        if not got:
-            return None
-        p, (u, v) = got[0]
-        z = float(d[v, u])
-        pool.take(p, (u, v))
-        q = DEPTH_TEXTS[int(rng.integers(len(DEPTH_TEXTS)))].format(p=fmt_points([p]))
-        struct = {"kind": "number", "value": round(z, 6), "unit": "m", "quantity": "depth", "query_points": [list(p)]}
-        return QAPair(
-            template=f"{FAMILY}/depth",
-            question=q,
-            answer=fmt_length(z),
-            answer_struct=struct,
-            relations=["depth"],
-            **base,
-        )
+        return _make_depth(frame, pool, rng, base)
     if kind == "choice":
-        got = pool.pick(rng, 2)
-        if len(got) < 2:
-            return None
-        (pa, (ua, va)), (pb, (ub, vb)) = got
-        za, zb = float(d[va, ua]), float(d[vb, ub])
-        if abs(za - zb) <= max(CHOICE_MARGIN_ABS, CHOICE_MARGIN_REL * max(za, zb)):
-            return None
-        rel = "front" if rng.integers(2) == 0 else "behind"
-        correct = int(np.argmin([za, zb]) if rel == "front" else np.argmax([za, zb]))
-        pool.take(pa, (ua, va))
-        pool.take(pb, (ub, vb))
-        texts = [fmt_points([pa]), fmt_points([pb])]
-        q = CHOICE_TEXTS[rel][int(rng.integers(len(CHOICE_TEXTS[rel])))].format(
-            a=f"({LETTERS[0]}) {texts[0]}", b=f"({LETTERS[1]}) {texts[1]}"
-        )
-        answer = f"({LETTERS[correct]})" if rng.integers(2) == 0 else f"({LETTERS[correct]}) {texts[correct]}"
-        struct = {
-            "kind": "choice",
-            "options": texts,
-            "letter": LETTERS[correct],
-            "answer": texts[correct],
-            "relation": rel,
-            "query_points": [list(pa), list(pb)],
-            "depths": [round(za, 6), round(zb, 6)],
-        }
-        return QAPair(
-            template=f"{FAMILY}/{rel}",
-            question=q,
-            answer=answer,
-            answer_struct=struct,
-            relations=["depth", rel],
-            **base,
-        )
+        return _make_choice(frame, pool, rng, base)
+    return _make_turn(frame, kind, pool, rng, base)
+
+
+def _make_depth(frame: Frame, pool: _Pool, rng: np.random.Generator, base: dict[str, Any]) -> QAPair | None:
+    """The metric depth at a query point."""
+    d = frame.depth
+    got = pool.pick(rng, 1)
+    if not got:
+        return None
+    p, (u, v) = got[0]
+    z = float(d[v, u])
+    pool.take(p, (u, v))
+    q = DEPTH_TEXTS[int(rng.integers(len(DEPTH_TEXTS)))].format(p=fmt_points([p]))
+    struct = {"kind": "number", "value": round(z, 6), "unit": "m", "quantity": "depth", "query_points": [list(p)]}
+    return QAPair(
+        template=f"{FAMILY}/depth",
+        question=q,
+        answer=fmt_length(z),
+        answer_struct=struct,
+        relations=["depth"],
+        **base,
+    )
+
+
+def _make_choice(frame: Frame, pool: _Pool, rng: np.random.Generator, base: dict[str, Any]) -> QAPair | None:
+    """Which of two query points is nearer (farther): decided only outside the depth margin."""
+    d = frame.depth
+    got = pool.pick(rng, 2)
+    if len(got) < 2:
+        return None
+    (pa, (ua, va)), (pb, (ub, vb)) = got
+    za, zb = float(d[va, ua]), float(d[vb, ub])
+    if abs(za - zb) <= max(CHOICE_MARGIN_ABS, CHOICE_MARGIN_REL * max(za, zb)):
+        return None
+    rel = "front" if rng.integers(2) == 0 else "behind"
+    correct = int(np.argmin([za, zb]) if rel == "front" else np.argmax([za, zb]))
+    pool.take(pa, (ua, va))
+    pool.take(pb, (ub, vb))
+    texts = [fmt_points([pa]), fmt_points([pb])]
+    q = CHOICE_TEXTS[rel][int(rng.integers(len(CHOICE_TEXTS[rel])))].format(
+        a=f"({LETTERS[0]}) {texts[0]}", b=f"({LETTERS[1]}) {texts[1]}"
+    )
+    answer = f"({LETTERS[correct]})" if rng.integers(2) == 0 else f"({LETTERS[correct]}) {texts[correct]}"
+    struct = {
+        "kind": "choice",
+        "options": texts,
+        "letter": LETTERS[correct],
+        "answer": texts[correct],
+        "relation": rel,
+        "query_points": [list(pa), list(pb)],
+        "depths": [round(za, 6), round(zb, 6)],
+    }
+    return QAPair(
+        template=f"{FAMILY}/{rel}",
+        question=q,
+        answer=answer,
+        answer_struct=struct,
+        relations=["depth", rel],
+        **base,
+    )
+
+
+def _make_turn(frame: Frame, kind: str, pool: _Pool, rng: np.random.Generator, base: dict[str, Any]) -> QAPair | None:
+    """The camera turn to face a query point (retried for a point outside the no-turn margin)."""
     axis = kind.split("_")[1]
     for _ in range(6):
         got = pool.pick(rng, 1)

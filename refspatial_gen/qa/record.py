@@ -56,10 +56,10 @@ def plan_record(t: Template) -> RecordPlan:
             targets.setdefault(st.impl.targets_for, []).extend(
                 r for k in st.impl.target_args if (r := st.args.get(k)) is not None and r.kind in ("slot", "step")
             )
-    program = []
+    program: list[tuple[Step, tuple[tuple[str, int, Any], ...], str | None, tuple[str | None] | None]] = []
     prev_name = None
     for st in t.steps:
-        default_in = None
+        default_in: str | None = None
         if st.args.get("in") is None and st.impl.args.get("in") is not None:
             default_in = prev_name or ""
         default_of = (prev_name,) if st.impl.implicit_of and "of" not in st.args else None
@@ -88,7 +88,7 @@ def _point_answer(ans: PointValue, idx: SceneIndex) -> Answer:
     if ans.region is not None:
         r = ans.region
         poly, world = idx.region_rounded(r)
-        struct = {
+        region: dict[str, Any] = {
             "kind": "region",
             "points": [list(ans.point)],
             "region": {
@@ -102,10 +102,11 @@ def _point_answer(ans: PointValue, idx: SceneIndex) -> Answer:
             },
         }
         return Answer(
-            fmt_points([ans.point]), struct, "", [int(a) for a in r.anchors if isinstance(a, (int, np.integer))]
+            fmt_points([ans.point]), region, "", [int(a) for a in r.anchors if isinstance(a, (int, np.integer))]
         )
-    struct = {"kind": "points", "points": [list(ans.point)], "object_ids": [int(ans.object_id)]}  # type: ignore[arg-type]
-    return Answer(fmt_points([ans.point]), struct, "", [int(ans.object_id)])  # type: ignore[arg-type]
+    oid = int(ans.object_id)  # type: ignore[arg-type]  # a point without a region names its object
+    struct: dict[str, Any] = {"kind": "points", "points": [list(ans.point)], "object_ids": [oid]}
+    return Answer(fmt_points([ans.point]), struct, "", [oid])
 
 
 def _bool_answer(raw: bool, t: Template, env: dict[str, Any], rng: SampleRng) -> Answer:
@@ -123,7 +124,7 @@ def _option_answer(raw: OptionValue, t: Template, idx: SceneIndex, rng: SampleRn
     perm = list(range(n)) if raw.marks else [int(x) for x in rng.permutation(n)]  # marks: already random order
     opts = [raw.options[p] for p in perm]
     k = perm.index(raw.correct)
-    texts = ["" for _ in opts] if raw.marks else [o if isinstance(o, str) else idx.phrase[o] for o in opts]  # type: ignore[index]
+    texts = ["" for _ in opts] if raw.marks else [o if isinstance(o, str) else idx.phrase[o] for o in opts]
     choices = fmt_choices(texts)
     text = f"({LETTERS[k]})" if (raw.marks or rng.integers(2) == 0) else f"({LETTERS[k]}) {texts[k]}"
     struct: dict[str, Any] = {
@@ -134,8 +135,8 @@ def _option_answer(raw: OptionValue, t: Template, idx: SceneIndex, rng: SampleRn
     }
     targets: list[int] = []
     if not isinstance(opts[0], str):
-        struct["option_ids"] = [int(o) for o in opts]  # type: ignore[call-overload]
-        targets = [int(opts[k])]  # type: ignore[call-overload]
+        struct["option_ids"] = [int(o) for o in opts]
+        targets = [int(opts[k])]
     if raw.marks:
         style = t.program.record.mark_style
         struct["style"] = style
@@ -144,15 +145,18 @@ def _option_answer(raw: OptionValue, t: Template, idx: SceneIndex, rng: SampleRn
                 "label": LETTERS[i],
                 "object_id": int(o),
                 "style": style,
-                "view": view,  # type: ignore[call-overload]
-                "box": [round(float(x), 1) for x in idx.objects[o].bbox2d]  # type: ignore[index]
-                if idx.objects[o].bbox2d is not None
-                else None,  # type: ignore[index]
+                "view": view,
+                "box": _box(idx, o),
                 "point": list(idx.point(o)),
             }
             for i, o in enumerate(opts)
-        ]  # type: ignore[arg-type]
+        ]
     return Answer(text, struct, choices, targets)
+
+
+def _box(idx: SceneIndex, o: int) -> list[float] | None:
+    b = idx.objects[o].bbox2d
+    return None if b is None else [round(float(x), 1) for x in b]
 
 
 def _number_answer(raw: NumberValue, t: Template, env: dict[str, Any]) -> Answer:
@@ -201,8 +205,8 @@ def _question(t: Template, env: dict[str, Any], ans: Any, ctx: Context, rng: Sam
     ph = placeholders(variant)
     rend = Renderer(t, env, ctx, rng, choices, "")
     if instr_seq is not None:
-        rend.instruction = render(instr_seq, rend, rng)  # type: ignore[arg-type]
-    question = render(variant, rend, rng)  # type: ignore[arg-type]
+        rend.instruction = render(instr_seq, rend, rng)
+    question = render(variant, rend, rng)
     if choices and "choices" not in ph:
         question = f"{question} {choices}"
     if instr_seq is not None and "instruction" not in ph:
@@ -338,7 +342,7 @@ def _out_json(v: Any) -> Any:
 def _arg_plan(t: Template, st: Step) -> tuple[tuple[str, int, Any], ...]:
     """How a record writes each argument of a step into the program record: (key, mode, payload) with mode
     0 = a constant, 1 = a step reference, 2 = an object slot, 3 = anything else (through _ref_json)."""
-    out = []
+    out: list[tuple[str, int, Any]] = []
     for k, r in st.args.items():
         if r.kind == "all":
             out.append((k, 0, "all"))

@@ -39,7 +39,11 @@ def load_template_file(path: str | pathlib.Path, relation_ids: tuple[str, ...] |
 
 
 def compile_templates(
-    data: Any, file: str, lines: dict, errors: list[RecipeError], relation_ids: tuple[str, ...] | None = None
+    data: Any,
+    file: str,
+    lines: dict[tuple[Any, ...], int],
+    errors: list[RecipeError],
+    relation_ids: tuple[str, ...] | None = None,
 ) -> list[Template]:
     """Compile a parsed template document; problems go to `errors` (nothing raised)."""
     ctx = Ctx(file, lines, errors)
@@ -68,7 +72,7 @@ def compile_templates(
     return out
 
 
-def _compile_one(item: Any, path: tuple, ctx: Ctx, known_rel: tuple[str, ...]) -> Template | None:
+def _compile_one(item: Any, path: tuple[Any, ...], ctx: Ctx, known_rel: tuple[str, ...]) -> Template | None:
     n0 = len(ctx.errors)
     if not isinstance(item, dict):
         ctx.err(path, f"a template must be a mapping, got {type(item).__name__}")
@@ -192,7 +196,7 @@ def _check_slot_use(slots: dict[str, SlotSpec], used: set[str], text_slots: set[
             )
 
 
-def _check_forms(s: SlotSpec, form: str, ctx: Ctx, path: tuple) -> None:
+def _check_forms(s: SlotSpec, form: str, ctx: Ctx, path: tuple[Any, ...]) -> None:
     for rel in s.choices or ():
         if form in s.phrases.get(rel, {}):
             continue
@@ -204,7 +208,7 @@ def _check_forms(s: SlotSpec, form: str, ctx: Ctx, path: tuple) -> None:
             )
 
 
-def _compile_texts(v: Any, path: tuple, ctx: Ctx, required: bool) -> list[Seq]:
+def _compile_texts(v: Any, path: tuple[Any, ...], ctx: Ctx, required: bool) -> list[Seq]:
     if isinstance(v, str):
         v = [v]
     if not isinstance(v, list) or (required and not v):

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from refspatial_gen.core.model import FreeSpaceRegion
 
@@ -23,7 +23,7 @@ class PointValue:
 
 @dataclass(frozen=True)
 class OptionValue:
-    options: tuple[object, ...]  # object ids, or words ("left", "right")
+    options: tuple[Any, ...]  # object ids, or words ("left", "right")
     correct: int
     marks: bool = False
 

@@ -12,12 +12,13 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Iterable, Iterator
 from typing import Any
 
 import numpy as np
 
 from refspatial_gen.core.mask import denormalise_point
-from refspatial_gen.core.model import Frame, QAPair, Sample, SceneGraph
+from refspatial_gen.core.model import Frame, FreeSpaceRegion, QAPair, Sample, SceneGraph
 from refspatial_gen.qa.ops import OPS
 from refspatial_gen.qa.verify_world import ANGLE_TOL, LENGTH_ABS_TOL, LENGTH_REL_TOL, Fail, Run, Undecided, World, _size
 
@@ -27,12 +28,11 @@ KEY_TOL = 1.5e-3  # key-step values are rounded to 3 decimals
 
 def _steps_of(program: list[dict[str, Any]]) -> int:
     """The step count the record's own program gives (each op's formats.md rule over the stored arguments)."""
-    from refspatial_gen.qa.ops import OPS
 
     n = 0
     for st in program:
         op, a = st.get("op"), st.get("args") or {}
-        if op in OPS:
+        if isinstance(op, str) and op in OPS:
             n += OPS[op].weight({k for k, v in a.items() if v is not None})
     return max(1, n)
 
@@ -148,7 +148,7 @@ def _check_phrases(qa: QAPair, graph: SceneGraph, frame: Frame) -> list[str]:
     return out
 
 
-def _walk(x: Any):
+def _walk(x: Any) -> Iterator[dict[str, Any]]:
     if isinstance(x, dict):
         yield x
         for v in x.values():
@@ -294,7 +294,7 @@ def _check_marks(qa: QAPair, w: World, order: list[str]) -> list[str]:
     return out
 
 
-def _find_region(graph: SceneGraph, r: dict):
+def _find_region(graph: SceneGraph, r: dict[str, Any]) -> FreeSpaceRegion | None:
     for reg in graph.free_space:
         if (
             reg.surface_id == r.get("surface_id")
@@ -333,7 +333,7 @@ def _check_trace(qa: QAPair, w: World) -> list[str]:
             ):
                 out.append(f"trace line {ln!r} differs from key step {ks.type} {ks.phrase!r} {ks.value}")
     # key-step ground truth
-    by_phrase = {}
+    by_phrase: dict[str, int] = {}
     for n in w.graph.nodes:
         for p in n.phrases:
             by_phrase.setdefault(p, n.object_id)
@@ -347,7 +347,7 @@ def _check_trace(qa: QAPair, w: World) -> list[str]:
                     out.append(f"key step {ks.phrase!r} {ks.value} is not the free-space answer {pts[0]}")
                 continue
             if oid is None:
-                oid = (qa.targets or [None])[-1] if ks is qa.key_steps[-1] else None
+                oid = qa.targets[-1] if qa.targets and ks is qa.key_steps[-1] else None
             if oid is None:
                 out.append(f"key step phrase {ks.phrase!r} names no object")
                 continue
@@ -372,7 +372,7 @@ def _check_trace(qa: QAPair, w: World) -> list[str]:
     return out
 
 
-def verify_sample(sample: Sample) -> list[dict]:
+def verify_sample(sample: Sample) -> list[dict[str, Any]]:
     """Failures of one sample's QA pairs: [{"sample_id", "qa_id", "template", "reason"}]; [] = all pass."""
     frames = {f.frame_id: f for f in sample.frames}
     graphs = {g.frame_id: g for g in sample.graphs}
@@ -385,10 +385,10 @@ def verify_sample(sample: Sample) -> list[dict]:
     return out
 
 
-def verify_samples(samples) -> dict:
+def verify_samples(samples: Iterable[Sample]) -> dict[str, Any]:
     """Summary over samples: {"qa_pairs", "passed", "failed", "failures"}."""
     total = failed = 0
-    failures: list[dict] = []
+    failures: list[dict[str, Any]] = []
     for s in samples:
         f = verify_sample(s)
         bad = {x["qa_id"] for x in f}

@@ -12,8 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from refspatial_gen.core.geometry import box_distance
-from refspatial_gen.core.model import Frame, QAPair, SceneGraph
+from refspatial_gen.core.geometry import Box3D, box_distance
+from refspatial_gen.core.model import Frame, ObjectInstance, QAPair, SceneGraph
 from refspatial_gen.graph.relations import REGISTRY
 
 LENGTH_ABS_TOL = 0.01  # m: recomputed lengths (sampled box distances) may differ by this ...
@@ -55,7 +55,7 @@ class World:
         self.used: list[str] = []
         self._masks: dict[int, np.ndarray] = {}
 
-    def holds(self, rel: str, *args) -> bool:
+    def holds(self, rel: str, *args: Any) -> bool:
         from refspatial_gen.graph.relations import evaluate
 
         f = evaluate(self.geom, rel, *args)
@@ -81,13 +81,13 @@ class World:
 
 
 # ------------------------------------------------------------------------------------------ numbers
-def _size(box) -> tuple[float, float, float]:
+def _size(box: Box3D) -> tuple[float, float, float]:
     fp = box.footprint()
     s = np.linalg.norm(np.roll(fp, -1, axis=0) - fp, axis=1)
     return float(max(s[0], s[1])), float(min(s[0], s[1])), float(box.height)
 
 
-def _horizontal_front(o) -> np.ndarray | None:
+def _horizontal_front(o: ObjectInstance) -> np.ndarray | None:
     f = o.front_world
     if f is None:
         return None
@@ -101,7 +101,7 @@ def recompute_quantity(world: World, q: str, a: int, b: int | None) -> float:
     fr = world.frame
     oa = world.objects[a]
     if q == "distance":
-        return box_distance(oa.box, world.objects[b].box, n=9)
+        return box_distance(oa.box, world.objects[b].box, n=9)  # type: ignore[index]
     if q == "depth":
         d = fr.depth[world.mask(a)]
         d = d[d > 0]
@@ -113,7 +113,7 @@ def recompute_quantity(world: World, q: str, a: int, b: int | None) -> float:
     if q == "width":
         return _size(oa.box)[0]
     if q == "angle":
-        h1, h2 = _horizontal_front(oa), _horizontal_front(world.objects[b])
+        h1, h2 = _horizontal_front(oa), _horizontal_front(world.objects[b])  # type: ignore[index]
         if h1 is None or h2 is None:
             raise Fail("angle: an object has no front direction")
         return float(np.arccos(np.clip(h1 @ h2, -1, 1)))
@@ -192,7 +192,7 @@ class Run:
     def quantity(self, q: str, a: int, b: int | None) -> float:
         return recompute_quantity(self.w, q, a, b)
 
-    def most(self, cands: list, rel: str, anchor: Any) -> Any:
+    def most(self, cands: list[Any], rel: str, anchor: Any) -> Any:
         """The candidate that decidedly wins against every other. Comparisons between two losers may be
         undecided (they do not change the answer); an undecided comparison of the winner may not."""
         w = self.w

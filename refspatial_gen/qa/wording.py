@@ -3,6 +3,8 @@ default wording of relations, directions, surfaces and spots (qa/lexicon.py)."""
 
 from __future__ import annotations
 
+from typing import Any
+
 from refspatial_gen.qa import lexicon
 from refspatial_gen.qa.index import Reject, SceneIndex
 from refspatial_gen.qa.program import Template
@@ -52,7 +54,9 @@ def _plural(word: str) -> str:
 class Renderer:
     """Placeholder values of one instance (`{a}`, `{rel.sup}`, `{choices}`...) for text.render."""
 
-    def __init__(self, t: Template, env: dict, ctx: Context, rng: SampleRng, choices: str, instruction: str) -> None:
+    def __init__(
+        self, t: Template, env: dict[str, Any], ctx: Context, rng: SampleRng, choices: str, instruction: str
+    ) -> None:
         self.t, self.env, self.ctx, self.rng = t, env, ctx, rng
         self.choices, self.instruction = choices, instruction
 

@@ -6,6 +6,7 @@ and the bowl" must pick out one cup; when two qualify the question is not asked 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -13,7 +14,17 @@ import numpy as np
 from refspatial_gen.core.geometry import inside_fraction
 from refspatial_gen.core.model import RelationFact
 from refspatial_gen.graph.relations.base import Cell, Relation, register
-from refspatial_gen.graph.relations.common import FALSE, TRUE, UNDECIDED, band_matrix, cached, fact, holds_of, pos
+from refspatial_gen.graph.relations.common import (
+    FALSE,
+    TRUE,
+    UNDECIDED,
+    Matrices,
+    band_matrix,
+    cached,
+    fact,
+    holds_of,
+    pos,
+)
 from refspatial_gen.graph.relations.lookup import false_absent, sparse_cell, sparse_table
 from refspatial_gen.graph.scene import SceneGeom
 
@@ -24,8 +35,8 @@ G = ("gravity",)
 MIN_BETWEEN_SPAN = 0.05  # m; anchors closer than this span no "between" region
 
 
-def _inside(geom):
-    def f(g):
+def _inside(geom: SceneGeom) -> Matrices:
+    def f(g: SceneGeom) -> Matrices:
         n = g.n
         frac = np.zeros((n, n))
         # only pairs whose boxes overlap can have volume inside one another
@@ -43,7 +54,7 @@ def _inside(geom):
     return cached(geom, "contain:inside", f)
 
 
-def between_arrays(xy: np.ndarray, ids: np.ndarray, categories: list[str], dist: np.ndarray, th):
+def between_arrays(xy: np.ndarray, ids: np.ndarray, categories: list[str], dist: np.ndarray, th: Any) -> Any:
     """Every anchor pair at once: (B, C, cand, code, t) with anchor positions B[p], C[p] (ids[B] < ids[C]),
     cand[p, a] = between(a, B[p], C[p]) is not False, code[p, a] its TRUE/UNDECIDED code and t[p, a] the
     position along the segment. None when no pair spans a region."""
@@ -82,13 +93,15 @@ def between_arrays(xy: np.ndarray, ids: np.ndarray, categories: list[str], dist:
     return B, C, cand, code, t
 
 
-def between_table(xy: np.ndarray, ids: np.ndarray, categories: list[str], dist: np.ndarray, th) -> dict:
+def between_table(
+    xy: np.ndarray, ids: np.ndarray, categories: list[str], dist: np.ndarray, th: Any
+) -> dict[tuple[int, int, int], tuple[int, float]]:
     """{(a, b, c) positions: (code, t)} for anchors b, c with ids[b] < ids[c]; False instances omitted.
     Shared by the geometry and the query index (which passes stored node centres and distances)."""
     return table_from_arrays(between_arrays(xy, ids, categories, dist, th))
 
 
-def table_from_arrays(arr) -> dict:
+def table_from_arrays(arr: Any) -> dict[tuple[int, int, int], tuple[int, float]]:
     """between_table's dict from between_arrays' output (callers holding the arrays skip recomputing them)."""
     if arr is None:
         return {}
@@ -100,7 +113,7 @@ def table_from_arrays(arr) -> dict:
     }
 
 
-def _between(geom):
+def _between(geom: SceneGeom) -> dict[tuple[int, int, int], tuple[int, float]]:
     return cached(
         geom,
         "contain:between",
@@ -119,8 +132,8 @@ def _inside_stored(geom: SceneGeom) -> list[RelationFact]:
     ]
 
 
-def _inside_eval(negated: bool):
-    def evaluate(geom, a, b) -> RelationFact:
+def _inside_eval(negated: bool) -> Callable[..., RelationFact]:
+    def evaluate(geom: SceneGeom, a: Any, b: Any) -> RelationFact:
         i, j = pos(geom, a), pos(geom, b)
         frac, codes, m = _inside(geom)
         f = fact("inside", (a, b), codes[i, j], frac[i, j], m)
@@ -131,7 +144,7 @@ def _inside_eval(negated: bool):
     return evaluate
 
 
-def _between_eval(geom, a, b, c) -> RelationFact:
+def _between_eval(geom: SceneGeom, a: Any, b: Any, c: Any) -> RelationFact:
     i, j, k = pos(geom, a), pos(geom, b), pos(geom, c)
     if geom.ids[j] > geom.ids[k]:
         j, k = k, j

@@ -25,7 +25,7 @@ from refspatial_gen.graph.relations.lookup import pair_cell, pair_table
 from refspatial_gen.graph.scene import SceneGeom
 
 
-def _lateral(geom):
+def _lateral(geom: SceneGeom) -> Matrices:
     x = geom.cam_centers[:, 0]
     u = geom.img_centroid[:, 0]
     v = x[None, :] - x[:, None]  # v[i, j] > 0: i is left of j
@@ -36,7 +36,7 @@ def _lateral(geom):
     return v, codes, geom.th.lateral_margin
 
 
-def _depthwise(geom):
+def _depthwise(geom: SceneGeom) -> Matrices:
     d = geom.near_depth
     v = d[None, :] - d[:, None]  # v[i, j] > 0: i nearer than j
     c = geom.center_depth
@@ -46,7 +46,7 @@ def _depthwise(geom):
     return v, codes, geom.th.depth_margin
 
 
-def _image_vertical(geom):
+def _image_vertical(geom: SceneGeom) -> Matrices:
     y = geom.img_centroid[:, 1]
     v = y[None, :] - y[:, None]  # v[i, j] > 0: i higher in the image than j
     return v, decide_matrix(v, geom.th.image_margin), geom.th.image_margin
@@ -55,7 +55,7 @@ def _image_vertical(geom):
 _GROUPS = {"left": _lateral, "front": _depthwise, "above_image": _image_vertical}
 
 
-def matrices(geom, rel: str):
+def matrices(geom: SceneGeom, rel: str) -> Matrices:
     return cached(geom, "dir:" + rel, _GROUPS[rel])
 
 

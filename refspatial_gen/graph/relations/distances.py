@@ -35,8 +35,8 @@ if TYPE_CHECKING:
 G = ("gravity",)
 
 
-def _distance(geom):
-    def f(g):
+def _distance(geom: SceneGeom) -> Matrices:
+    def f(g: SceneGeom) -> Matrices:
         d = g.surface_distance
         codes = np.full(d.shape, TRUE, dtype=np.int8)
         return d, codes, np.maximum(0.01, g.th.quantity_tolerance * d)
@@ -44,8 +44,8 @@ def _distance(geom):
     return cached(geom, "dist:distance", f)
 
 
-def _touching(geom):
-    def f(g):
+def _touching(geom: SceneGeom) -> Matrices:
+    def f(g: SceneGeom) -> Matrices:
         d = g.surface_distance
         th = g.th
         return d, band_matrix(d, th.touch_distance, th.touch_distance + th.touch_band), th.touch_band
@@ -53,8 +53,8 @@ def _touching(geom):
     return cached(geom, "dist:touching", f)
 
 
-def _far_from(geom):
-    def f(g):
+def _far_from(geom: SceneGeom) -> Matrices:
+    def f(g: SceneGeom) -> Matrices:
         d = g.surface_distance
         th = g.th
         # far_from holds when d is large: reuse band_matrix on the negated distance
@@ -64,8 +64,8 @@ def _far_from(geom):
     return cached(geom, "dist:far_from", f)
 
 
-def _next_to(geom):
-    def f(g):
+def _next_to(geom: SceneGeom) -> Matrices:
+    def f(g: SceneGeom) -> Matrices:
         d = g.surface_distance
         th = g.th
         codes = band_matrix(d, th.next_to_distance, th.next_to_distance + th.distance_margin)
@@ -79,8 +79,8 @@ def _next_to(geom):
     return cached(geom, "dist:next_to", f)
 
 
-def _sym_eval(matrices, rel: str):
-    def evaluate(geom, a, b) -> RelationFact:
+def _sym_eval(matrices: Callable[[SceneGeom], Matrices], rel: str) -> Callable[..., RelationFact]:
+    def evaluate(geom: SceneGeom, a: Any, b: Any) -> RelationFact:
         i, j = pos(geom, a), pos(geom, b)
         v, codes, m = matrices(geom)
         mm = float(np.broadcast_to(np.asarray(m, float), v.shape)[i, j])
@@ -95,8 +95,8 @@ def close_value(d_ac: float, d_bc: float, margin: float) -> tuple[bool | None, f
     return decide(v, margin), v
 
 
-def _close_eval(mirror: bool):
-    def evaluate(geom, a, b, c) -> RelationFact:
+def _close_eval(mirror: bool) -> Callable[..., RelationFact]:
+    def evaluate(geom: SceneGeom, a: Any, b: Any, c: Any) -> RelationFact:
         if len({a, b, c}) < 3:
             raise ValueError("close/far need three different objects")
         i, j, k = pos(geom, a), pos(geom, b), pos(geom, c)
@@ -109,12 +109,12 @@ def _close_eval(mirror: bool):
     return evaluate
 
 
-def _depth_eval(geom, a) -> RelationFact:
+def _depth_eval(geom: SceneGeom, a: Any) -> RelationFact:
     i = pos(geom, a)
     return _depth_fact(geom, i)
 
 
-def _depth_fact(geom, i: int) -> RelationFact:
+def _depth_fact(geom: SceneGeom, i: int) -> RelationFact:
     """Depth of an object: median metric depth of its visible pixels. Undecided when the object spans
     more depth than the accepted error (a long sofa seen end-on has no single distance)."""
     v = geom.mask_depth[i]

@@ -14,7 +14,7 @@ import numpy as np
 
 from refspatial_gen.core.model import RelationFact
 from refspatial_gen.graph.relations.base import FRONT_SOURCES, T_FALSE, T_UNDECIDED, Cell, Relation, register
-from refspatial_gen.graph.relations.common import FALSE, TRUE, UNDECIDED, cached, fact, holds_of, pos
+from refspatial_gen.graph.relations.common import FALSE, TRUE, UNDECIDED, Matrices, cached, fact, holds_of, pos
 from refspatial_gen.graph.relations.lookup import sparse_cell, sparse_table, stored_cell
 from refspatial_gen.graph.scene import SceneGeom, roll_next
 
@@ -26,7 +26,7 @@ MAX_FRONT_Z = 0.7
 SECTORS = ("obj_front", "obj_left", "obj_behind", "obj_right")  # centred on 0, 90, 180, -90 degrees
 
 
-def horizontal_fronts(geom) -> np.ndarray:
+def horizontal_fronts(geom: SceneGeom) -> np.ndarray:
     """(n, 2) unit horizontal fronts (NaN where unknown or too vertical)."""
     f = geom.fronts.copy()
     bad = ~geom.has_front | (np.abs(f[:, 2]) > MAX_FRONT_Z)
@@ -39,14 +39,14 @@ def horizontal_fronts(geom) -> np.ndarray:
 
 
 # ------------------------------------------------------------------ camera rotations (unary)
-def _rotation_h(geom, i: int) -> RelationFact:
+def _rotation_h(geom: SceneGeom, i: int) -> RelationFact:
     x, _, z = geom.cam_centers[i]
     v = float(np.arctan2(x, z))
     m = geom.th.rotation_margin
     return RelationFact("rotation_horizontal", (int(geom.ids[i]),), True if abs(v) > m and z > 0 else None, v, m)
 
 
-def _rotation_v(geom, i: int) -> RelationFact:
+def _rotation_v(geom: SceneGeom, i: int) -> RelationFact:
     """Pitch in a gravity-levelled camera: elevation of the object's direction over the camera's
     horizontal forward axis. Undecided without gravity or when the camera looks straight down."""
     m = geom.th.rotation_margin
@@ -62,7 +62,7 @@ def _rotation_v(geom, i: int) -> RelationFact:
 
 
 # ------------------------------------------------------------------ angle between fronts (symmetric)
-def angle_between(h1, h2) -> float | None:
+def angle_between(h1: Any, h2: Any) -> float | None:
     """Angle (rad) between two horizontal unit fronts, None when either is unknown."""
     h1, h2 = np.asarray(h1, float), np.asarray(h2, float)
     if not (np.isfinite(h1).all() and np.isfinite(h2).all()):
@@ -70,7 +70,7 @@ def angle_between(h1, h2) -> float | None:
     return float(np.arccos(np.clip(h1 @ h2, -1.0, 1.0)))
 
 
-def _angle(geom, i: int, j: int) -> RelationFact:
+def _angle(geom: SceneGeom, i: int, j: int) -> RelationFact:
     h = horizontal_fronts(geom)
     m = geom.th.angle_margin
     v = angle_between(h[i], h[j])
@@ -94,12 +94,12 @@ def rays_hit_polygons(origins: np.ndarray, dirs: np.ndarray, polys: np.ndarray, 
     return (tmin <= tmax) & ~blocked
 
 
-def _facing_matrix(geom, sign: float):
-    def f(g):
+def _facing_matrix(geom: SceneGeom, sign: float) -> Matrices:
+    def f(g: SceneGeom) -> Matrices:
         n = g.n
         h = horizontal_fronts(g) * sign
         th = g.th
-        ok = np.isfinite(h).all(axis=1)
+        ok = np.asarray(np.isfinite(h).all(axis=1))
         hh = np.where(ok[:, None], h, 0.0)
         d = g.centers[None, :, :2] - g.centers[:, None, :2]  # (i, j): from i to j
         dist = np.linalg.norm(d, axis=2)
@@ -128,7 +128,7 @@ def bearings(centers_xy: np.ndarray, fronts_h: np.ndarray) -> np.ndarray:
     return np.arctan2(np.einsum("ijd,jd->ij", d, left), np.einsum("ijd,jd->ij", d, fronts_h))
 
 
-def sector_codes(theta, margin: float, outside) -> dict[str, np.ndarray]:
+def sector_codes(theta: Any, margin: float, outside: Any) -> dict[str, np.ndarray]:
     """Decisions (int8 arrays shaped like theta) for each of the four 90-degree sectors. `outside` is
     False where A overlaps the anchor (no direction)."""
     theta = np.asarray(theta, float)
@@ -144,18 +144,18 @@ def sector_codes(theta, margin: float, outside) -> dict[str, np.ndarray]:
     return out
 
 
-def _sector_matrix(geom):
+def _sector_matrix(geom: SceneGeom) -> np.ndarray:
     return cached(geom, "orient:sector", lambda g: bearings(g.centers[:, :2], horizontal_fronts(g)))
 
 
-def _sector_fact(geom, i: int, j: int, rel: str) -> RelationFact:
+def _sector_fact(geom: SceneGeom, i: int, j: int, rel: str) -> RelationFact:
     theta = _sector_matrix(geom)[i, j]
     m = geom.th.sector_margin
     args = (int(geom.ids[i]), int(geom.ids[j]))
     if i == j or not np.isfinite(theta):
         return RelationFact(rel, args, None, 0.0, m)
     outside = geom.surface_distance[i, j] > 1e-6
-    return fact(rel, args, sector_codes(theta, m, outside)[rel], theta, m)
+    return fact(rel, args, int(sector_codes(theta, m, outside)[rel]), theta, m)
 
 
 # ------------------------------------------------------------------ stored instances
@@ -182,17 +182,17 @@ def _facing_stored(rel: str, sign: float) -> Callable[[SceneGeom], list[Relation
     return stored
 
 
-def _unary_eval(fn):
+def _unary_eval(fn: Callable[[SceneGeom, int], RelationFact]) -> Callable[..., RelationFact]:
     return lambda geom, a: fn(geom, pos(geom, a))
 
 
-def _angle_eval(geom, a, b) -> RelationFact:
+def _angle_eval(geom: SceneGeom, a: Any, b: Any) -> RelationFact:
     f = _angle(geom, pos(geom, a), pos(geom, b))
     return RelationFact("angle", (a, b), f.holds, f.value, f.margin)
 
 
-def _facing_eval(sign: float, rel: str):
-    def evaluate(geom, a, b) -> RelationFact:
+def _facing_eval(sign: float, rel: str) -> Callable[..., RelationFact]:
+    def evaluate(geom: SceneGeom, a: Any, b: Any) -> RelationFact:
         i, j = pos(geom, a), pos(geom, b)
         v, codes, m = _facing_matrix(geom, sign)
         return fact(rel, (a, b), codes[i, j], v[i, j], m)
@@ -200,7 +200,7 @@ def _facing_eval(sign: float, rel: str):
     return evaluate
 
 
-def _sector_eval(rel: str):
+def _sector_eval(rel: str) -> Callable[..., RelationFact]:
     return lambda geom, a, b: _sector_fact(geom, pos(geom, a), pos(geom, b), rel)
 
 

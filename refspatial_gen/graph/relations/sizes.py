@@ -10,13 +10,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from refspatial_gen.graph.relations.base import HOLDS_OF_CODE, T_MISSING, Cell, CellRule, Relation, Rows, register
-from refspatial_gen.graph.relations.common import cached, decide_matrix, pair_evaluator
+from refspatial_gen.graph.relations.common import Matrices, cached, decide_matrix, pair_evaluator
+from refspatial_gen.graph.scene import SceneGeom
 
 if TYPE_CHECKING:
     from refspatial_gen.graph.tables import RelationTables
 
 
-def compare(q: np.ndarray, abs_margin, rel_margin):
+def compare(q: Any, abs_margin: Any, rel_margin: Any) -> Matrices:
     """(value, codes, margin) matrices for "i larger than j" over quantities q (also used by the query
     index on stored node attributes, so both decide identically). q may stack several quantities on leading
     axes (shape (..., n)), with margins broadcastable to (..., 1, 1): the QA index compares all three sizes
@@ -27,15 +28,15 @@ def compare(q: np.ndarray, abs_margin, rel_margin):
     return v, decide_matrix(v, m), m
 
 
-def _tall(geom):
+def _tall(geom: SceneGeom) -> Matrices:
     return cached(geom, "size:tall", lambda g: compare(g.height, g.th.height_margin_abs, g.th.size_margin_rel))
 
 
-def _big(geom):
+def _big(geom: SceneGeom) -> Matrices:
     return cached(geom, "size:big", lambda g: compare(g.volume, 0.0, g.th.volume_margin_rel))
 
 
-def _wide(geom):
+def _wide(geom: SceneGeom) -> Matrices:
     return cached(geom, "size:wide", lambda g: compare(g.width, g.th.width_margin_abs, g.th.size_margin_rel))
 
 

@@ -25,15 +25,15 @@ EDGE_AXIS_TOLERANCE = np.deg2rad(30.0)  # an edge's outward normal within this o
 CORNER_SEPARATION = 0.15  # corner coordinates must differ from the centre by this share of the extent
 
 
-def surface_labels(geom) -> dict[str, dict]:
+def surface_labels(geom: SceneGeom) -> dict[str, dict[str, Any]]:
     """{surface id: {"polygon": (4,2), "corners": {label: xy}, "edges": {label: (a, b)}}}."""
 
-    def f(g):
+    def f(g: SceneGeom) -> dict[str, dict[str, Any]]:
         out = {}
         axes = g.camera_axes_horizontal()
         for s in g.surfaces:
             poly = surface_polygon(s.box)
-            entry = {"polygon": poly, "corners": {}, "edges": {}, "z": s.top_z}
+            entry: dict[str, Any] = {"polygon": poly, "corners": {}, "edges": {}, "z": s.top_z}
             out[s.id] = entry
             if axes is None:
                 continue
@@ -86,11 +86,11 @@ def _footprint_to_edge(fp: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
     return float(max(0.0, ((fp - a) @ inward).min()))
 
 
-def _corner_edge(geom):
+def _corner_edge(geom: SceneGeom) -> dict[tuple[str, int, str, str], tuple[int, float]]:
     """{(rel, object pos, surface id, label): (code, value)} for objects whose support chain ends on a
     surface with labels; False instances omitted."""
 
-    def f(g):
+    def f(g: SceneGeom) -> dict[tuple[str, int, str, str], tuple[int, float]]:
         th = g.th
         _, roots = get_supports(g)
         labels = surface_labels(g)
@@ -160,8 +160,8 @@ def _spot_domain(rel: str) -> Callable[[RelationTables], list[tuple[Any, ...]]]:
     return lambda t: [(i, sid, lab) for i in t.ids for sid, e in sorted(t.surfaces.items()) for lab in e.get(key, [])]
 
 
-def _eval(rel: str):
-    def evaluate(geom, a, surface_id: str, label: str) -> RelationFact:
+def _eval(rel: str) -> Callable[..., RelationFact]:
+    def evaluate(geom: SceneGeom, a: Any, surface_id: str, label: str) -> RelationFact:
         i = pos(geom, a)
         code, v = _corner_edge(geom).get((rel, i, surface_id, label), (None, 0.0))
         if code is None:
@@ -177,7 +177,7 @@ def _eval(rel: str):
     return evaluate
 
 
-def _free_eval(geom, surface_id: str, kind: str, *anchors) -> RelationFact:
+def _free_eval(geom: SceneGeom, surface_id: str, kind: str, *anchors: Any) -> RelationFact:
     from refspatial_gen.graph.freespace import free_regions
 
     for r in free_regions(geom):

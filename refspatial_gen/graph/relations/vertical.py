@@ -16,6 +16,7 @@ from refspatial_gen.graph.relations.common import (
     FALSE,
     TRUE,
     UNDECIDED,
+    Matrices,
     cached,
     decide_matrix,
     fact,
@@ -33,8 +34,8 @@ if TYPE_CHECKING:
 G = ("gravity",)
 
 
-def _above(geom):
-    def f(g):
+def _above(geom: SceneGeom) -> Matrices:
+    def f(g: SceneGeom) -> Matrices:
         cz = g.centers[:, 2]
         v = cz[:, None] - cz[None, :]  # v[i, j] > 0: i's centre higher
         tol = g.th.stack_tolerance
@@ -48,10 +49,10 @@ def _above(geom):
     return cached(geom, "vert:above", f)
 
 
-def _under(geom):
+def _under(geom: SceneGeom) -> Matrices:
     """under[i, j]: i's top at or below j's bottom, with their footprints overlapping."""
 
-    def f(g):
+    def f(g: SceneGeom) -> Matrices:
         tol = g.th.stack_tolerance
         below = g.hi[:, None, 2] <= g.lo[None, :, 2] + tol
         share = np.maximum(g.footprint_overlap, g.footprint_overlap.T)  # share of the smaller footprint covered
@@ -65,7 +66,7 @@ def _under(geom):
     return cached(geom, "vert:under", f)
 
 
-def on_fact(geom, a, b) -> RelationFact:
+def on_fact(geom: SceneGeom, a: Any, b: Any) -> RelationFact:
     """on(A, B): B is A's support (B an object id or a surface id)."""
     i = pos(geom, a)
     sup, _ = get_supports(geom)
@@ -75,7 +76,7 @@ def on_fact(geom, a, b) -> RelationFact:
     return RelationFact("on", (a, b), holds, 0.0 if s is None else s.gap, geom.th.support_gap)
 
 
-def supported_by_fact(geom, a, b) -> RelationFact:
+def supported_by_fact(geom: SceneGeom, a: Any, b: Any) -> RelationFact:
     f = on_fact(geom, a, b)
     return RelationFact("supported_by", f.args, f.holds, f.value, f.margin)
 

@@ -50,7 +50,7 @@ def set_in(st: Step, env: dict[str, Any], prev: Any, idx: SceneIndex) -> frozens
     r = st.args.get("in")
     if r is None:
         return prev if isinstance(prev, frozenset) else idx.all
-    return resolve(r, env, prev, idx)  # type: ignore[no-any-return]
+    return resolve(r, env, prev, idx)
 
 
 def single(v: Any) -> int:
@@ -58,8 +58,8 @@ def single(v: Any) -> int:
     if isinstance(v, frozenset):
         if len(v) != 1:
             raise Reject("not_unique" if v else "empty")
-        return next(iter(v))  # type: ignore[no-any-return]
-    return v  # type: ignore[no-any-return]
+        return next(iter(v))
+    return v
 
 
 def bounded(st: Step, before: frozenset[int], out: frozenset[int], ctx: Context) -> frozenset[int]:
@@ -78,7 +78,7 @@ def bounded(st: Step, before: frozenset[int], out: frozenset[int], ctx: Context)
 
 def name_of(ref: Ref | None) -> str | None:
     """The env key a slot/step reference reads, or None for other kinds."""
-    return ref.value if ref is not None and ref.kind in ("slot", "step") else None  # type: ignore[no-any-return]
+    return ref.value if ref is not None and ref.kind in ("slot", "step") else None
 
 
 def value_of(ref: Ref | None) -> tuple[str | None, Any] | None:
@@ -145,7 +145,7 @@ def winner(cands: Any, rel: str, anchor: int | None, idx: SceneIndex) -> int:
             raise Reject("no_winner")
     if undecided:
         raise Reject("margin")
-    return best  # type: ignore[no-any-return]
+    return best
 
 
 def nearest_winner(cands: list[int], d: list[float], farthest: bool, margin: float) -> int:

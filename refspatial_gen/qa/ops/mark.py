@@ -15,7 +15,7 @@ if TYPE_CHECKING:
 
 
 def style_of(st: Step) -> str:
-    return st.args["style"].value if "style" in st.args else "box"  # type: ignore[no-any-return]
+    return st.args["style"].value if "style" in st.args else "box"
 
 
 class Mark(Op):
