@@ -52,8 +52,22 @@ bench: setup-test
 preview: setup
 	$(BIN)/refspatial-gen preview $(OUT) --out out/preview
 
-lint: setup
-	$(BIN)/refspatial-gen recipes lint recipes/*.yaml recipes/templates/*.yaml
+# ruff (lint + format check) over LINT_PATHS, mypy --strict over TYPED_PATHS, and the recipe/template lint.
+# LINT_PATHS lists the parts brought to zero findings so far (issue #20); the lead widens it to
+# `refspatial_gen tests` once the parallel work has merged (then `ruff format` the rest once).
+LINT_PATHS ?= refspatial_gen/core refspatial_gen/graph refspatial_gen/qa refspatial_gen/cli refspatial_gen/tools \
+	tests/test_core.py tests/test_graph_*.py tests/test_qa_*.py tests/test_plugins.py tests/test_registries.py \
+	tests/test_size_limits.py tests/test_sim_cli.py tests/helpers/scenes.py
+TYPED_PATHS ?= refspatial_gen/core refspatial_gen/graph refspatial_gen/qa
+# every recipe and template file, except recipes that name a local model folder this machine may lack
+# (image_depth_anything.yaml: its model_dir is checked when a run starts)
+RECIPE_LINT ?= $(filter-out recipes/image_depth_anything.yaml,$(wildcard recipes/*.yaml)) recipes/templates/*.yaml
+
+lint: setup-test
+	$(BIN)/ruff check $(LINT_PATHS)
+	$(BIN)/ruff format --check $(LINT_PATHS)
+	$(BIN)/mypy $(TYPED_PATHS)
+	$(BIN)/refspatial-gen recipes lint $(RECIPE_LINT)
 
 clean:
 	rm -rf out
