@@ -31,6 +31,7 @@ def test_faithful_rewrites_pass(new):
     ("Is the cup left of the bowl?", "phrase_missing"),
     ("Is the red cup left of the bowl, and is the bowl big?", "phrase_repeated"),
     ("Is the red cup left of the bowl and the blue plate?", "extra_object"),
+    ("Is the bowl to the left of the red cup?", "order_changed"),
     ("Is the red cup left of the bowl near the lamp?", "extra_object"),
     ("Is the red cup to the right of the bowl?", "relation_changed"),
     ("Is the red cup not to the left of the bowl?", "relation_changed"),

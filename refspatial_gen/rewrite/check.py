@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from refspatial_gen.rewrite import rules
 
 REASONS = ("server_error", "bad_json", "answer_changed", "empty", "too_long", "too_short", "not_one_line",
-           "format_text", "phrase_missing", "phrase_repeated", "extra_object", "word_missing", "relation_changed",
+           "format_text", "phrase_missing", "phrase_repeated", "order_changed", "extra_object", "word_missing", "relation_changed",
            "perspective_changed", "number_changed", "leaked_answer", "question_form", "unchanged", "no_suffix")
 
 _ENUM = re.compile(r"(?<![\d.])\d\.(?=\s)")  # "1. left of the cup 2. ..." enumeration markers
@@ -61,6 +61,8 @@ def body_reason(original: str, new: str, phrases: tuple[str, ...], fwords: tuple
             return "phrase_missing"
         if n_counts[p] != o_counts[p]:
             return "phrase_repeated"
+    if rules.phrase_order(new, lp) != rules.phrase_order(original, lp):
+        return "order_changed"  # the same phrases in another order may swap roles (A closer to B than C)
     if rules.nouns_in(n_masked, vocab) - rules.nouns_in(o_masked, vocab) - set(w.lower() for w in fwords):
         return "extra_object"
     if rules.nouns_in(o_masked, frozenset(w.lower() for w in fwords)) - rules.nouns_in(

@@ -17,8 +17,8 @@ from collections import Counter
 CONCEPTS: dict[str, tuple[str, ...]] = {
     "left": ("left", "leftmost", "left-hand", "leftward"),
     "right": ("right", "rightmost", "right-hand", "rightward"),
-    "front": ("front", "frontmost", "foreground", "ahead"),
-    "behind": ("behind", "back", "rear", "rearmost", "background", "beyond"),
+    "front": ("front", "fronts", "frontmost", "foreground", "ahead"),
+    "behind": ("behind", "back", "backs", "rear", "rearmost", "background", "beyond"),
     "above": ("above", "higher", "highest", "over", "top", "topmost", "upper", "up", "upward", "upwards"),
     "below": ("below", "lower", "lowest", "under", "underneath", "beneath", "bottom", "bottommost", "down",
               "downward", "downwards"),
@@ -130,6 +130,17 @@ def nouns_in(text: str, vocab: frozenset[str]) -> frozenset[str]:
         if re.search(r"(?<![a-z0-9])" + re.escape(v) + r"(?:s|es)?(?![a-z0-9])", t):
             out.add(v)
     return frozenset(out)
+
+
+def phrase_order(text: str, phrases: tuple[str, ...]) -> list[str]:
+    """The phrases in the order they occur (longest first claims its span, as in mask_phrases)."""
+    found: list[tuple[int, str]] = []
+    for p in sorted(set(phrases), key=lambda s: (-len(s), s)):
+        pat = re.compile(r"(?<![A-Za-z0-9])" + re.escape(p) + r"(?![A-Za-z0-9])", re.IGNORECASE)
+        for m in pat.finditer(text):
+            found.append((m.start(), p))
+        text = pat.sub(lambda m: "\u2063" * len(m.group(0)), text)
+    return [p for _, p in sorted(found)]
 
 
 def mask_phrases(text: str, phrases: tuple[str, ...]) -> tuple[str, Counter]:
