@@ -34,7 +34,7 @@ def llama_server(tmp_path_factory):
 def test_real_small_model_rewrites_pass_verify_and_rejections_are_counted(tmp_path, llama_server):
     from refspatial_gen.cli import main
 
-    p = write_toy_recipe(tmp_path, scenes=2, per_shard=2)
+    p = write_toy_recipe(tmp_path, scenes=1, per_shard=1)
     run_plan(load_recipe(p), RecipeRef(str(p), None, None, None), tmp_path / "plain", workers=1, strict=True,
              progress=False)
     cfg = tmp_path / "rw.yaml"

@@ -138,6 +138,11 @@ def test_rewrite_command_copies_everything_but_the_questions_and_resumes(tmp_pat
         assert main(["rewrite", str(tmp_path / "plain"), "--out", str(tmp_path / "rw2"), "--config", str(cfg),
                      "--quiet"]) == 0
         assert srv.state.requests == sent  # all from the cache
+        first = output_digest(tmp_path / "rw")
+        (tmp_path / "rw" / sorted(p.name for p in (tmp_path / "rw").glob("shard-*.mcap"))[-1]).write_bytes(b"torn")
+        assert main(["rewrite", str(tmp_path / "plain"), "--out", str(tmp_path / "rw"), "--config", str(cfg),
+                     "--quiet"]) == 0  # resume: intact shards kept, the damaged one redone from the cache
+        assert srv.state.requests == sent and output_digest(tmp_path / "rw") == first
     assert output_digest(tmp_path / "rw") == output_digest(tmp_path / "rw2")
     for f in sorted((tmp_path / "plain").glob("shard-*.mcap")):
         for a, b in zip(iter_raw(f), iter_raw(tmp_path / "rw" / f.name)):

@@ -22,11 +22,14 @@ from refspatial_gen.rewrite.stage import Rewriter
 PARTS = "_rewrite_parts"
 
 
-def _done(out: Path, name: str) -> dict[str, Any] | None:
-    p = out / PARTS / f"{name}.json"
+def _done(out: Path, row: dict[str, Any], model: str) -> dict[str, Any] | None:
+    """The shard's record if it was rewritten from this very source shard by this model and is intact."""
+    p = out / PARTS / f"{row['name']}.json"
     try:
         rec = json.loads(p.read_bytes())
     except (OSError, ValueError):
+        return None
+    if rec.get("source_sha256") != row.get("sha256") or rec.get("model") != model:
         return None
     for s in rec.get("shards", []):
         f = out / s["name"]
@@ -52,9 +55,10 @@ def rewrite_dir(src: str | Path, out: str | Path, cfg: RewriteConfig, cache_dir:
     infos: list[dict[str, Any]] = []
     try:
         for row in index["shards"]:
-            rec = _done(out, row["name"])
+            rec = _done(out, row, cfg.model)
             if rec is None:
-                rec = _rewrite_shard(src / row["name"], out / row["name"], rw)
+                rec = {**_rewrite_shard(src / row["name"], out / row["name"], rw), "source_sha256": row.get("sha256"),
+                       "model": cfg.model}
                 atomic_write_bytes(out / PARTS / f"{row['name']}.json", dumps(rec))
             counts.update(rec["counts"])
             infos += [{**s, **({"group": row["group"]} if "group" in row else {})} for s in rec["shards"]]
