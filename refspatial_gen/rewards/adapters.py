@@ -4,8 +4,9 @@ TRL (checked against trl 1.16.0, `GRPOTrainer._calculate_rewards`): each functio
 called as `f(prompts=[...], completions=[...], completion_ids=[...], **columns, trainer_state=...,
 log_extra=..., log_metric=...)`, where every other dataset column arrives as a list with one entry per
 completion and `completions` are strings (standard data) or `[{"role": "assistant", "content": str}]`
-(conversational data). It returns one float (or None: "does not apply") per completion. The RFT export
-(`export --format rft`) has a `ground_truth` column (the gold JSON string) that these functions read:
+(conversational data). It returns one float (or None: "does not apply") per completion. These functions
+read the gold JSON string from the RFT export's `reward_model` column (`{"style", "ground_truth"}`) or
+from a plain `ground_truth` column:
 
     from refspatial_gen.rewards.adapters import trl_reward_funcs
     trainer = GRPOTrainer(model=..., reward_funcs=trl_reward_funcs(), args=GRPOConfig(reward_weights=[1, 1, .25, .25]), ...)
@@ -44,9 +45,13 @@ def completion_text(completion: Any) -> str:
 
 
 def _trl(name: str, fn: Callable[[str, Any], float | None]) -> Callable[..., list[float | None]]:
-    def reward(prompts=None, completions=None, completion_ids=None, ground_truth=None, **kwargs) -> list[float | None]:
+    def reward(prompts=None, completions=None, completion_ids=None, ground_truth=None, reward_model=None,
+               **kwargs) -> list[float | None]:
+        if ground_truth is None and reward_model is not None:  # the RFT export's verl-style column
+            ground_truth = [r["ground_truth"] for r in reward_model]
         if completions is None or ground_truth is None:
-            raise ValueError(f"{name}: needs `completions` and a `ground_truth` dataset column (export --format rft)")
+            raise ValueError(f"{name}: needs `completions` and a `reward_model` or `ground_truth` column "
+                             "(export --format rft)")
         if len(ground_truth) != len(completions):
             raise ValueError(f"{name}: {len(completions)} completions but {len(ground_truth)} ground truths")
         return [fn(completion_text(c), coerce_gold(g)) for c, g in zip(completions, ground_truth)]

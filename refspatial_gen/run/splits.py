@@ -224,3 +224,18 @@ def sample_split(scene_map: dict[str, str], frames: list[dict], sample_id: str) 
         if s in scene_map:
             return scene_map[s]
     return "unassigned"
+
+
+def splits_of_samples(samples) -> dict[str, str]:
+    """scene id -> split for an exporter's samples (`shards.export.DirSamples` carries its folder); {} if unknown."""
+    d = getattr(samples, "shard_dir", None)
+    if d is None:
+        return {}
+    from refspatial_gen.shards.index import read_index
+
+    return scene_splits(read_index(d))
+
+
+def keep_sample(split: str, wanted: Iterable[str] | None) -> bool:
+    """Export filter: `wanted` None keeps all; a dataset without splits ("unassigned") is always kept."""
+    return wanted is None or split == "unassigned" or split in set(wanted)
