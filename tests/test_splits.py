@@ -1,5 +1,7 @@
 """Splits: by scene group, never by QA pair; unseen holds out categories and (category, relation) pairs; recipe errors."""
 
+from pathlib import Path
+
 import pytest
 
 from refspatial_gen.core.errors import RecipeErrors
@@ -73,7 +75,9 @@ def test_recipe_section_validated(tmp_path):
     assert any("r.yaml:5" in m and "tset" in m for m in msgs), msgs
     assert any("r.yaml:9" in m and "leftish" in m for m in msgs), msgs
     assert any("r.yaml:10" in m and "relation" in m for m in msgs), msgs
-    p.write_text(TOY_HEAD + "splits:\n  unseen:\n    combinations:\n      - {category: cup, relation: left}\n")
+    tpl = Path(__file__).resolve().parents[1] / "recipes" / "templates" / "locate.yaml"
+    p.write_text(TOY_HEAD + f"qa:\n  families:\n    locate: {{templates: [{tpl}]}}\n"
+                 "splits:\n  unseen:\n    combinations:\n      - {category: cup, relation: left}\n")
     r = load_recipe(p)
     assert r.splits["fractions"] == {"train": 0.8, "val": 0.1, "test": 0.1}
     assert r.splits["unseen"]["combinations"] == [{"category": "cup", "relation": "left"}]
