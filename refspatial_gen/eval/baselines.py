@@ -7,12 +7,15 @@
 - `text-only`: the question's words alone. Choice: the option named first in the question stem (before
   the options), else (A). Points: a point from the stem's direction words (left/right/top/bottom/near/far
   shift it from the centre). Numbers: the median gold value of the quantity the question names.
-- `random`: a uniform option, a uniform point, a number drawn uniformly in log scale between 0.05 and 3 m
-  (or 0 to 180 degrees), from `numpy.random.default_rng(seed)`.
+- `random`: a uniform option, a uniform point, a length drawn uniformly in log scale between 0.05 and 5 m,
+  an angle uniform in [0, 180] degrees, a camera rotation uniform in [-90, 90] degrees, from
+  `numpy.random.default_rng(seed)`.
 
-The audit runs text-only and frequent-choice and compares each template's success with chance (a
-uniform guess: 1/options, or mask area / image area for points). A template whose text-only success has
-a 95 % interval lying wholly above chance + `LEAK_MARGIN` leaks its answer through its wording.
+The audit runs text-only and frequent-choice and compares each template's success with chance: the
+expected success of the random baseline, worked out exactly per QA pair (1/options; mask area / image
+area; the share of the random number's range within the answer tolerance). A template whose text-only
+success has a 95 % interval lying wholly above chance + `LEAK_MARGIN` is reported as leaking its answer:
+its wording, or the narrow spread of its answers, gives the answer away without the image.
 """
 
 from __future__ import annotations
@@ -24,15 +27,53 @@ from statistics import median
 import numpy as np
 
 from refspatial_gen.eval.dataset import Item
-from refspatial_gen.eval.score import mean_chance, wilson
+from refspatial_gen.eval.score import wilson
 from refspatial_gen.rewards.parse import LETTERS
+from refspatial_gen.rewards.reward import ANGLE_TOL_RAD, LENGTH_REL_TOL
 
 BASELINES = ("gold", "centre", "frequent-choice", "text-only", "random")
 LEAK_MARGIN = 0.15
 _CENTRE = "[(0.500, 0.500)]"
+LENGTH_RANGE = (0.05, 5.0)  # metres, log-uniform
+ANGLE_RANGE = (0.0, np.pi)
+ROTATION_RANGE = (-np.pi / 2, np.pi / 2)
 
 
-def _fmt_number(value: float, unit: str | None) -> str:
+def _number_range(it: Item) -> tuple[float, float]:
+    if it.gold.unit != "rad":
+        return LENGTH_RANGE
+    return ROTATION_RANGE if str(it.gold.quantity).startswith("rotation") else ANGLE_RANGE
+
+
+def chance(it: Item) -> float | None:
+    """Expected success of the random baseline on one QA pair (exact, not sampled)."""
+    g = it.gold
+    if g.kind == "choice":
+        return 1.0 / max(1, len(g.options))
+    if g.kind in ("points", "region"):
+        m = g.mask_array()
+        return None if m is None else float(m.mean())
+    if g.kind == "number" and g.value is not None:
+        lo, hi = _number_range(it)
+        if g.unit != "rad":
+            if g.value <= 0:
+                return 0.0
+            a, b = max(lo, (1 - LENGTH_REL_TOL) * g.value), min(hi, (1 + LENGTH_REL_TOL) * g.value)
+            return max(0.0, np.log(b / a)) / np.log(hi / lo) if b > a else 0.0
+        a, b = max(lo, g.value - ANGLE_TOL_RAD), min(hi, g.value + ANGLE_TOL_RAD)
+        return max(0.0, b - a) / (hi - lo)
+    return None
+
+
+def mean_chance(items: list[Item]) -> float | None:
+    vals = [c for c in (chance(it) for it in items) if c is not None]
+    return sum(vals) / len(vals) if vals else None
+
+
+def _fmt_number(value: float, unit: str | None, quantity: str = "") -> str:
+    if unit == "rad" and quantity.startswith("rotation"):
+        word = ("right" if value > 0 else "left") if quantity.endswith("horizontal") else ("up" if value > 0 else "down")
+        return f"rotate {word} around {abs(np.degrees(value)):.1f} degrees"
     if unit == "rad":
         return f"{np.degrees(value):.1f} degrees"
     return f"{value:.2f} meters"
@@ -111,10 +152,11 @@ def predict(name: str, items: list[Item], seed: int = 0) -> dict[str, str]:
                 out[it.id] = f"({LETTERS[int(rng.integers(n))]})"
         elif g.kind == "number":
             if name in ("frequent-choice", "text-only"):
-                out[it.id] = _fmt_number(medians[str(g.quantity)], g.unit)
+                out[it.id] = _fmt_number(medians[str(g.quantity)], g.unit, str(g.quantity))
             elif name == "random":
-                v = float(np.exp(rng.uniform(np.log(0.05), np.log(3.0)))) if g.unit != "rad" else float(rng.uniform(0, np.pi))
-                out[it.id] = _fmt_number(v, g.unit)
+                lo, hi = _number_range(it)
+                v = float(np.exp(rng.uniform(np.log(lo), np.log(hi)))) if g.unit != "rad" else float(rng.uniform(lo, hi))
+                out[it.id] = _fmt_number(v, g.unit, str(g.quantity))
     return out
 
 

@@ -13,7 +13,7 @@ each relation it asks), step count, source and split.
 from __future__ import annotations
 
 import math
-from typing import Any, Iterable
+from typing import Any
 
 from refspatial_gen.eval.dataset import Item
 from refspatial_gen.eval.predictions import Predictions
@@ -91,15 +91,3 @@ def summarise(items: list[Item], records: list[dict], preds: Predictions) -> dic
         order = sorted(groups, key=lambda s: (int(s) if g == "steps" else 0, s))
         out[f"by_{g}"] = {key: _row(groups[key]) for key in order}
     return out
-
-
-def mean_chance(items: Iterable[Item]) -> float | None:
-    """Mean success a blind guess would get (uniform option, or uniform point: mask area / image area)."""
-    vals = []
-    for it in items:
-        g = it.gold
-        if g.kind == "choice" and g.options:
-            vals.append(1.0 / len(g.options))
-        elif g.kind in ("points", "region") and g.mask_array() is not None:
-            vals.append(float(g.mask_array().mean()))
-    return sum(vals) / len(vals) if vals else None
