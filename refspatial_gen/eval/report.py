@@ -7,14 +7,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-
-def _figure(w: float, h: float):
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(w, h), dpi=100)
-    FigureCanvasAgg(fig)
-    return fig
+from refspatial_gen.run.report import _figure  # the run report's Agg figure (no pyplot state)
 
 
 def _rates_plot(path: Path, rows: dict[str, dict], title: str, xlabel: str) -> None:
