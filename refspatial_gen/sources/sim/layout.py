@@ -80,6 +80,7 @@ class SceneDesc:
     room_half: np.ndarray  # (hx, hy) of the floor area
     walls: bool
     appearance: dict[str, Any]
+    floor: bool = True  # False for single-object renders (asset sheets, texture checks)
 
 
 def _outline(geo: AssetGeometry) -> np.ndarray:

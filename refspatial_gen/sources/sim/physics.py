@@ -128,7 +128,14 @@ def _add_part(spec: mujoco.MjSpec, body, part: Part, name: str, mat: str, fricti
         g.rgba = [0.5, 0.5, 0.5, 0.0]
 
 
-def _material(spec, name: str, rgb, params: dict[str, float], texture: str | None = None, repeat=(1, 1)) -> str:
+def _material(spec, name: str, rgb, params: dict[str, float], texture: str | None = None,
+              repeat: tuple[float, float] | None = None) -> str:
+    """A material; `texture` with `repeat` is tiled by world size (procedural wood, checker), without
+    `repeat` it is mapped by the mesh's own texture coordinates (authored UVs of scanned/imported meshes).
+
+    Why the distinction: MuJoCo's `texuniform` ignores a mesh's texcoords, so a UV atlas (YCB) rendered
+    with it samples one texel of the atlas everywhere and the object comes out a flat (often black) colour.
+    """
     m = spec.add_material()
     m.name = name
     m.rgba = [float(rgb[0]), float(rgb[1]), float(rgb[2]), float(params.get("alpha", 1.0))]
@@ -137,8 +144,8 @@ def _material(spec, name: str, rgb, params: dict[str, float], texture: str | Non
     m.reflectance = params.get("reflectance", 0.0)
     if texture:
         m.textures[int(mujoco.mjtTextureRole.mjTEXROLE_RGB)] = texture
-        m.texrepeat = list(repeat)
-        m.texuniform = True
+        m.texrepeat = list(repeat) if repeat is not None else [1.0, 1.0]
+        m.texuniform = repeat is not None
     return name
 
 
@@ -187,7 +194,9 @@ def build_model(desc: SceneDesc, catalog_materials: dict[str, dict[str, float]],
     fl.name = "floor"
     fl.type = mujoco.mjtGeom.mjGEOM_PLANE
     fl.size = [float(desc.room_half[0]) + 2, float(desc.room_half[1]) + 2, 0.1]
-    if ap["floor_tex"] == 0:
+    if not desc.floor:  # single-object renders: keep the geom (names stay stable) but never draw or collide it
+        fl.group, fl.contype, fl.conaffinity, fl.rgba = HIDDEN_GROUP, 0, 0, [0, 0, 0, 0]
+    elif ap["floor_tex"] == 0:
         t = spec.add_texture()
         t.name, t.type, t.builtin = "tex_checker", mujoco.mjtTexture.mjTEXTURE_2D, mujoco.mjtBuiltin.mjBUILTIN_CHECKER
         t.width, t.height = 256, 256
