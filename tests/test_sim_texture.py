@@ -49,7 +49,7 @@ def test_uv_texture_on_a_slab_matches_the_image(tmp_path):
     faces = [[0, 1, 2], [0, 2, 3], [4, 6, 5], [4, 7, 6], [0, 4, 5], [0, 5, 1], [1, 5, 6], [1, 6, 2], [2, 6, 7],
              [2, 7, 3], [3, 7, 4], [3, 4, 0]]
     mesh = trimesh.Trimesh(verts, faces, process=False)
-    geo = AssetGeometry([Part("mesh", mesh=mesh, uv=uv, texture=str(tmp_path / "tex.png"))])
+    geo = AssetGeometry([Part("mesh", mesh=mesh, uv=uv, texture=str(tmp_path / "tex.png"), texture_img=tex)])
     cam = _cam([0.0, 0.0, 0.45], [0.0, 0.0, 0.0])
     r = _render(geo, cam)
     m = r.instance == 1

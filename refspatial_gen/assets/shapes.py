@@ -75,7 +75,9 @@ class Part:
     visual: bool = True
     collide: bool = True
     uv: np.ndarray | None = None  # per-vertex texture coordinates of `mesh` (external textured meshes)
-    texture: str | None = None  # image file for `uv`
+    texture: str | None = None  # where the texture for `uv` came from (image file, or "<mesh file>#<n>" if embedded)
+    texture_img: np.ndarray | None = None  # its pixels, uint8 HxWx3, first row = top of the image (v = 1)
+    rgba: tuple[float, float, float, float] | None = None  # an authored fixed colour (overrides `role`)
 
     def trimesh(self) -> trimesh.Trimesh:
         """This part as a triangle mesh in the object frame (for boxes, silhouettes and USD); built once."""

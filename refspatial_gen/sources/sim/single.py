@@ -16,9 +16,18 @@ from refspatial_gen.sources.sim.layout import PlacedObject, SceneDesc
 
 NEUTRAL_LOOK: dict[str, Any] = {
     "table_tex": 3, "table_tint": np.array([0.8, 0.8, 0.8]), "floor_tex": 1, "floor_rgb1": np.array([0.5, 0.5, 0.5]),
-    "floor_rgb2": np.array([0.4, 0.4, 0.4]), "wall_rgb": np.array([0.8, 0.8, 0.8]), "counter_rgb": np.array([0.6, 0.6, 0.6]),
-    "light_dir": [0.3, 0.2, -1.0], "light_diffuse": 0.6, "ambient": 0.4, "light_warm": [1.0, 1.0, 1.0],
+    "wall_rgb": np.array([0.8, 0.8, 0.8]), "counter_rgb": np.array([0.6, 0.6, 0.6]), "cabinet_rgb": np.array([0.7, 0.6, 0.5]),
+    "sofa_rgb": np.array([0.5, 0.5, 0.55]), "bedding_rgb": np.array([0.9, 0.9, 0.9]), "ambient": 0.35, "headlight": 0.3,
 }
+
+
+def neutral_lights() -> list:
+    """A fixed key and fill light, so sheets and texture checks look the same every time."""
+    from refspatial_gen.sources.sim.lighting import KEY_BASE, Light
+
+    d = np.array([-0.3, -0.2, -1.0]) / np.linalg.norm([-0.3, -0.2, -1.0])
+    return [Light("directional", -3 * d, d, np.ones(3), 1.0, KEY_BASE, False),
+            Light("directional", np.array([0, 0, 3.0]), np.array([0.5, 0.4, -0.77]), np.ones(3), 0.6, KEY_BASE, False)]
 
 
 def single_object_desc(cat: Category, geo: AssetGeometry, rgb=(0.7, 0.7, 0.7), material: str = "plastic",
@@ -27,7 +36,7 @@ def single_object_desc(cat: Category, geo: AssetGeometry, rgb=(0.7, 0.7, 0.7), m
     rgb = np.asarray(rgb, float)
     o = PlacedObject("o00", cat, geo, cat.colors[0] if cat.colors else "gray", rgb, rgb * 0.5, material,
                      np.zeros(3), 0.0, "floor")
-    return SceneDesc("single", [o], [], [], [], np.array([1.0, 1.0]), False, dict(NEUTRAL_LOOK), floor)
+    return SceneDesc("single", [o], [], [], [], np.array([1.0, 1.0]), False, dict(NEUTRAL_LOOK), floor, neutral_lights())
 
 
 def render_single(desc: SceneDesc, cams: list[Camera], materials: dict[str, dict[str, float]],
