@@ -81,6 +81,7 @@ class _Ctx:
 
     def __init__(self, file: str, lines: dict, errors: list[RecipeError]):
         self.file, self.lines, self.errors, self.base = file, lines, errors, Path(file).resolve().parent
+        self.reported: set[str] = set()
 
     def err(self, path: tuple, msg: str) -> None:
         self.errors.append(RecipeError(self.file, line_of(self.lines, path), msg))
@@ -91,6 +92,12 @@ class _Ctx:
             self.err(where, f"{what} must be a path string")
             return None
         p = resolve_path(spec, self.base)
+        for prefix, root in (("shared:", shared_data_root()), ("cache:", cache_root())):
+            if spec.startswith(prefix) and not root.is_dir():  # one error for the root, not one per asset
+                if prefix not in self.reported:
+                    self.reported.add(prefix)
+                    self.err(where, f"{what} {spec!r}: folder {root} does not exist{missing_hint(spec)}")
+                return None
         ok = p.is_dir() if want_dir else p.is_file()
         if not ok:
             kind = "folder" if want_dir else "file"

@@ -121,7 +121,8 @@ def check_config(cfg: dict[str, Any], file: str, lines: dict, path: tuple, error
     files = [str(DEFAULT_CATALOG) if p == "builtin" else p for p in catalog_paths(raw, Path(file).resolve().parent)]
     for f in files:
         if not Path(f).is_file():
-            errors.append(RecipeError(file, where, f"catalog {f} not found (paths are relative to the recipe's folder)"))
+            errors.append(RecipeError(file, where, f"catalog {f} not found (paths are relative to the recipe's folder; "
+                                                   "write one with `refspatial-gen assets import DIR --out FILE`)"))
     if len(errors) or not files and raw:
         return
     cfg["catalog"] = files if len(files) != 1 else files[0]
