@@ -254,7 +254,7 @@ def _load_file(file: str, stack: tuple[str, ...], errors: list[RecipeError], acc
 
 
 @lru_cache(maxsize=16)
-def _load(files: tuple[str, ...], _roots: tuple[str, str]) -> Catalog:
+def _load(files: tuple[str, ...], _key: tuple) -> Catalog:
     errors: list[RecipeError] = []
     acc: dict[str, Any] = {"colors": {}, "materials": {}, "categories": {}, "files": []}
     for f in files:
@@ -277,4 +277,5 @@ def load_catalog(path: str | list[str] | tuple[str, ...] | None = None) -> Catal
         files = tuple(str(p) for p in path)
     else:
         files = (str(path),)
-    return _load(files, (str(shared_data_root()), str(cache_root())))
+    stamps = tuple(Path(f).stat().st_mtime_ns if Path(f).exists() else 0 for f in files)  # edits (set-front) reload
+    return _load(files, (str(shared_data_root()), str(cache_root()), stamps))

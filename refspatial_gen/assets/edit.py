@@ -10,7 +10,7 @@ import json
 import re
 from pathlib import Path
 
-from refspatial_gen.assets.catalog import Catalog, Category
+from refspatial_gen.assets.catalog import DEFAULT_CATALOG, Catalog, Category
 from refspatial_gen.assets.importer import parse_axis
 
 
@@ -37,6 +37,9 @@ def set_front(cat: Catalog, name: str, direction: str, phrase: str) -> tuple[str
     if not phrase.strip():
         raise ValueError("the front needs a phrase, e.g. \"the handle side\"")
     file, line = c.origin
+    if Path(file).resolve() != Path(cat.path).resolve() and Path(file).resolve() == DEFAULT_CATALOG.resolve():
+        raise ValueError(f"{c.name!r} comes from the built-in catalog through include:; give the name of one of "
+                         f"{cat.path}'s own categories (or edit the built-in catalog with --catalog {DEFAULT_CATALOG})")
     lines = Path(file).read_text().splitlines(keepends=True)
     i = line - 1
     indent = len(lines[i]) - len(lines[i].lstrip())

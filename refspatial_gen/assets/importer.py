@@ -22,7 +22,7 @@ from refspatial_gen.assets.paths import cache_root, portable_spec
 
 AXES = {"+x": [1, 0, 0], "-x": [-1, 0, 0], "+y": [0, 1, 0], "-y": [0, -1, 0], "+z": [0, 0, 1], "-z": [0, 0, -1],
         "x": [1, 0, 0], "y": [0, 1, 0], "z": [0, 0, 1]}
-UNIT_SCALES = (1.0, 0.1, 0.01, 0.001, 0.0254)  # metres, dm, cm, mm, inches
+UNIT_SCALES = (1.0, 0.01, 0.001)  # metres, centimetres, millimetres
 GENERAL_RANGE = (0.03, 1.2)  # longest side of a household object, metres
 FIXED_COLOURS = {"screen", "paper", "picture"}
 DEFAULT_COLOURS = ["white", "gray", "blue", "red", "green", "yellow", "black"]
@@ -69,7 +69,7 @@ def size_range(label: str) -> tuple[float, float] | None:
 
 
 def infer_scale(longest: float, rng: tuple[float, float] | None) -> float:
-    """The unit scale (m, dm, cm, mm, inch) that puts the longest side nearest (in log) to the range."""
+    """The unit scale (m, cm, mm) that puts the longest side nearest (in log) to the range."""
     lo, hi = rng or GENERAL_RANGE
     mid = np.sqrt(lo * hi)
     return min(UNIT_SCALES, key=lambda s: abs(np.log(max(longest * s, 1e-9) / mid)))
