@@ -13,7 +13,7 @@ PYTEST_ARGS ?=
 export MUJOCO_GL ?= egl
 export PYOPENGL_PLATFORM ?= egl
 
-.PHONY: setup setup-test shards test test-slow test-all bench preview lint clean
+.PHONY: setup setup-test shards test test-slow test-all bench preview lint clean assets-shared assets-textured
 
 $(STAMP): pyproject.toml
 	@bash scripts/ensure-system-libs.sh
@@ -27,7 +27,7 @@ $(STAMP): pyproject.toml
 # the tests also need the optional extras: Ray (scale-out), torch + transformers + onnxruntime (depth models)
 $(TEST_STAMP): $(STAMP)
 	@echo "installing test extras (pytest, hypothesis, ray, torch CPU, transformers, onnxruntime)"
-	@$(BIN)/python -m pip install -q -e '.[test,ray,depth,dev]'
+	@$(BIN)/python -m pip install -q -e '.[test,ray,depth,dev,assets]'
 	@rm -f $(VENV)/.installed-test-*
 	@touch $@
 
@@ -54,6 +54,34 @@ preview: setup
 
 lint: setup
 	$(BIN)/refspatial-gen recipes lint recipes/*.yaml recipes/templates/*.yaml
+
+# Asset catalogs (docs/sim.md). Imported catalogs go to out/assets/; downloads and convex decompositions to
+# the asset cache (REFSPATIAL_CACHE, default ~/.cache/refspatial-gen), never into the repository.
+SHARED ?= $(or $(REFSPATIAL_SHARED_DATA),../shared/data)
+ASSET_CACHE ?= $(or $(REFSPATIAL_CACHE),$(HOME)/.cache/refspatial-gen)
+ROBOSUITE := $(ASSET_CACHE)/libraries/robosuite-1.5.2
+
+ASSETS_STAMP := $(VENV)/.installed-assets-$(HASH)
+$(ASSETS_STAMP): $(STAMP)
+	@$(BIN)/python -m pip install -q -e '.[assets]'
+	@touch $@
+
+out/assets/ycb_sim.yaml out/assets/object_sim.yaml: out/assets/%.yaml: | $(ASSETS_STAMP)
+	$(BIN)/refspatial-gen assets import $(SHARED)/$* --out $@
+
+assets-shared: out/assets/ycb_sim.yaml out/assets/object_sim.yaml
+
+# robosuite's textured objects (MIT): the wheel is downloaded once at set-up, never at run time
+$(ROBOSUITE)/.stamp: | $(ASSETS_STAMP)
+	$(BIN)/python -m pip download -q --no-deps robosuite==1.5.2 -d $(ASSET_CACHE)/wheels
+	$(BIN)/python -m refspatial_gen.assets.library robosuite $(ASSET_CACHE)/wheels $(ROBOSUITE)
+	rm -f $(ASSET_CACHE)/wheels/robosuite-1.5.2-*.whl
+	touch $@
+
+out/assets/robosuite.yaml: $(ROBOSUITE)/.stamp
+	$(BIN)/refspatial-gen assets import $(ROBOSUITE)/objects/robosuite --out $@
+
+assets-textured: out/assets/robosuite.yaml
 
 clean:
 	rm -rf out

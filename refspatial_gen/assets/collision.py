@@ -51,7 +51,11 @@ def decompose(mesh: trimesh.Trimesh, cache: Path) -> tuple[str, Path | None]:
     folder = cache / "collision" / mesh_hash(mesh)
     if (folder / "DONE").exists():
         return "parts", folder
-    import coacd
+    try:
+        import coacd
+    except ImportError as e:
+        raise ValueError("convex decomposition needs CoACD: pip install 'refspatial-gen[assets]' "
+                         "(or `make assets-shared`), or import with --collision hull") from e
 
     coacd.set_log_level("error")
     parts = coacd.run_coacd(coacd.Mesh(np.asarray(mesh.vertices, float), np.asarray(mesh.faces, int)), **PARAMS)

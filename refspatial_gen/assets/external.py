@@ -92,7 +92,10 @@ def load_visuals(path: Path) -> list[VisualMesh]:
         return load_usd_visuals(path)
     if suffix not in MESH_SUFFIXES:
         raise ValueError(f"{path}: unsupported mesh format {suffix} (use {', '.join(MESH_SUFFIXES + USD_SUFFIXES)})")
-    loaded = trimesh.load(str(path), process=False, maintain_order=True)
+    # MTL files often name textures in a sibling folder (`../../textures/x.png`); trimesh 5 refuses paths
+    # outside the mesh's folder unless asked, and would silently drop the texture.
+    resolver = trimesh.resolvers.FilePathResolver(str(path), allow_anywhere=True)
+    loaded = trimesh.load(str(path), process=False, maintain_order=True, resolver=resolver)
     meshes = loaded.dump(concatenate=False) if isinstance(loaded, trimesh.Scene) else [loaded]
     out = [_look(m, f"{path}#{i}" if len(meshes) > 1 else str(path)) for i, m in enumerate(meshes)
            if isinstance(m, trimesh.Trimesh) and len(m.faces)]
