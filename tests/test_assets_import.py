@@ -149,3 +149,31 @@ def test_set_front_edits_the_defining_file_and_the_sheet_draws_it(tmp_path):
     assert im.shape == (2 * 96, 7 * 96, 3)
     magenta = (im[..., 0] > 200) & (im[..., 1] < 90) & (im[..., 2] > 150)
     assert magenta[:96, : 6 * 96].sum() > 30 and magenta[96:, : 6 * 96].sum() > 30  # both fronts drawn
+
+
+def test_imported_ycb_objects_render_with_their_labels(shared_data, tmp_path):
+    """One command on the shared folder, then a scene: YCB objects come out textured, not black."""
+    import os
+
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    from refspatial_gen.sources.sim import generate
+
+    if not (shared_data / "ycb_sim" / "objects.json").exists():
+        pytest.skip("ycb_sim not in shared data")
+    out = tmp_path / "ycb.yaml"
+    rows = import_assets([shared_data / "ycb_sim"], out, cache=tmp_path / "cache", collision="hull")
+    assert {r["label"] for r in rows} == {"cracker box", "tomato soup can", "mustard bottle", "gelatin box", "power drill"}
+    assert "shared:ycb_sim/003_cracker_box/model.obj" in out.read_text()
+    frames = generate("sim:000001", np.random.default_rng(1), {"catalog": str(out), "external_prob": 1.0, "width": 320,
+                                                               "height": 240, "views": 1, "layouts": {"tabletop": 1.0},
+                                                               "inside_prob": 0, "stack_prob": 0})
+    f = frames[0]
+    ycb = [o for o in f.objects if o.provenance["asset"].startswith("ycb_sim ")]
+    assert ycb
+    means = []
+    for o in ycb:
+        px = f.rgb[o.mask.decode()].astype(float)
+        if len(px) > 200:
+            assert px.std() > 15, o.category  # printed label: varied colours, not a flat black silhouette
+            means.append(px.mean())
+    assert means and max(means) > 70
