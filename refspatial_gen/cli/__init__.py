@@ -19,6 +19,7 @@ COMMAND_MODULES = [
     "refspatial_gen.cli.sim",
     "refspatial_gen.cli.assets",
     "refspatial_gen.cli.verify",
+    "refspatial_gen.cli.audit",
 ]
 
 
