@@ -59,7 +59,7 @@ AUDIT_DATA ?= out/audit-data
 AUDIT_OUT ?= out/audit
 AUDIT_N ?= 150
 AUDIT_RUN = $(BIN)/refspatial-gen shards --quiet --workers $(WORKERS)
-audit: setup
+audit: setup assets-shared
 	$(AUDIT_RUN) --recipe recipes/default.yaml --scenes 24 --out $(AUDIT_DATA)/sim
 	$(AUDIT_RUN) --recipe recipes/sim_ycb.yaml --scenes 24 --out $(AUDIT_DATA)/ycb
 	$(AUDIT_RUN) --recipe recipes/scan.yaml --input $(SHARED)/sunrgbd --out $(AUDIT_DATA)/scan-sun
@@ -73,7 +73,6 @@ lint: setup
 
 # Asset catalogs (docs/sim.md). Imported catalogs go to out/assets/; downloads and convex decompositions to
 # the asset cache (REFSPATIAL_CACHE, default ~/.cache/refspatial-gen), never into the repository.
-SHARED ?= $(or $(REFSPATIAL_SHARED_DATA),../shared/data)
 ASSET_CACHE ?= $(or $(REFSPATIAL_CACHE),$(HOME)/.cache/refspatial-gen)
 ROBOSUITE := $(ASSET_CACHE)/libraries/robosuite-1.5.2
 
