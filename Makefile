@@ -13,7 +13,7 @@ PYTEST_ARGS ?=
 export MUJOCO_GL ?= egl
 export PYOPENGL_PLATFORM ?= egl
 
-.PHONY: setup setup-test shards test test-slow test-all bench preview lint clean audit
+.PHONY: setup setup-test shards test test-slow test-all bench preview lint clean audit assets-shared assets-textured
 
 $(STAMP): pyproject.toml
 	@bash scripts/ensure-system-libs.sh
@@ -27,8 +27,8 @@ $(STAMP): pyproject.toml
 # the tests also need the optional extras: Ray (scale-out), torch + transformers + onnxruntime (depth models),
 # trl (the reward adapters run inside a real GRPOTrainer)
 $(TEST_STAMP): $(STAMP)
-	@echo "installing test extras (pytest, hypothesis, ray, torch CPU, transformers, onnxruntime, trl)"
-	@$(BIN)/python -m pip install -q -e '.[test,ray,depth,dev,rl]'
+	@echo "installing test extras (pytest, hypothesis, ray, torch CPU, transformers, onnxruntime, trl, coacd)"
+	@$(BIN)/python -m pip install -q -e '.[test,ray,depth,dev,rl,assets]'
 	@rm -f $(VENV)/.installed-test-*
 	@touch $@
 
@@ -60,7 +60,7 @@ AUDIT_DATA ?= out/audit-data
 AUDIT_OUT ?= out/audit
 AUDIT_N ?= 150
 AUDIT_RUN = $(BIN)/refspatial-gen shards --quiet --workers $(WORKERS)
-audit: setup
+audit: setup assets-shared
 	$(AUDIT_RUN) --recipe recipes/default.yaml --scenes 24 --out $(AUDIT_DATA)/sim
 	$(AUDIT_RUN) --recipe recipes/sim_ycb.yaml --scenes 24 --out $(AUDIT_DATA)/ycb
 	$(AUDIT_RUN) --recipe recipes/scan.yaml --input $(SHARED)/sunrgbd --out $(AUDIT_DATA)/scan-sun
@@ -71,6 +71,33 @@ audit: setup
 
 lint: setup
 	$(BIN)/refspatial-gen recipes lint recipes/*.yaml recipes/templates/*.yaml
+
+# Asset catalogs (docs/sim.md). Imported catalogs go to out/assets/; downloads and convex decompositions to
+# the asset cache (REFSPATIAL_CACHE, default ~/.cache/refspatial-gen), never into the repository.
+ASSET_CACHE ?= $(or $(REFSPATIAL_CACHE),$(HOME)/.cache/refspatial-gen)
+ROBOSUITE := $(ASSET_CACHE)/libraries/robosuite-1.5.2
+
+ASSETS_STAMP := $(VENV)/.installed-assets-$(HASH)
+$(ASSETS_STAMP): $(STAMP)
+	@$(BIN)/python -m pip install -q -e '.[assets]'
+	@touch $@
+
+out/assets/ycb_sim.yaml out/assets/object_sim.yaml: out/assets/%.yaml: | $(ASSETS_STAMP)
+	$(BIN)/refspatial-gen assets import $(SHARED)/$* --out $@
+
+assets-shared: out/assets/ycb_sim.yaml out/assets/object_sim.yaml
+
+# robosuite's textured objects (MIT): the wheel is downloaded once at set-up, never at run time
+$(ROBOSUITE)/.stamp: | $(ASSETS_STAMP)
+	$(BIN)/python -m pip download -q --no-deps robosuite==1.5.2 -d $(ASSET_CACHE)/wheels
+	$(BIN)/python -m refspatial_gen.assets.library robosuite $(ASSET_CACHE)/wheels $(ROBOSUITE)
+	rm -f $(ASSET_CACHE)/wheels/robosuite-1.5.2-*.whl
+	touch $@
+
+out/assets/robosuite.yaml: $(ROBOSUITE)/.stamp
+	$(BIN)/refspatial-gen assets import $(ROBOSUITE)/objects/robosuite --out $@
+
+assets-textured: out/assets/robosuite.yaml
 
 clean:
 	rm -rf out

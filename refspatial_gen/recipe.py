@@ -78,7 +78,12 @@ def _source_config(kind: str, data: Any, file: str, lines: dict, path: tuple, er
             errors.append(RecipeError(file, line_of(lines, path), "config must be a mapping"))
             return {}
         return dict(data or {})
-    return check_section(data, fields, file, lines, path, errors)
+    n = len(errors)
+    cfg = check_section(data, fields, file, lines, path, errors)
+    hook = getattr(src, "check_config", None)  # source checks that need the recipe's folder (paths) or files
+    if hook is not None and len(errors) == n:
+        hook(cfg, file, lines, path, errors)
+    return cfg
 
 
 def load_recipe(path: str | Path, *, seed: int | None = None, scenes: int | None = None,
