@@ -1,4 +1,4 @@
-"""CLI: `refspatial-gen assets list [--json]`, `refspatial-gen sim usd|gallery|bench`."""
+"""CLI: `refspatial-gen sim usd|gallery|bench|describe` (asset commands are in cli/assets.py)."""
 
 from __future__ import annotations
 
@@ -29,66 +29,54 @@ def _config(args: argparse.Namespace, base: dict[str, Any] | None = None) -> dic
 
 def run_unit(args: argparse.Namespace) -> tuple[Callable[[str], np.random.Generator], dict[str, Any]]:
     """(unit key -> generator, source config) exactly as a run of `--recipe` makes them: the run seeds a unit
-    from (recipe seed, "s<source index>/<unit key>") and passes the recipe's sim section, so `sim usd` and
-    `sim gallery` show the very scenes a run writes to its shards (unless an override changes the config)."""
+    from (recipe seed, "s<source index>/<unit key>") and passes the recipe's sim section, so `sim usd`,
+    `describe` and `gallery` show the very scenes a run writes to its shards (unless an override changes the
+    config)."""
     from refspatial_gen.recipe import load_recipe
     from refspatial_gen.run.plan import unit_rng
 
-    recipe = load_recipe(args.recipe)
+    recipe = load_recipe(args.recipe or DEFAULT_RECIPE)
     spec = next((s for s in recipe.sources if s.kind == "sim"), None)
     if spec is None:
-        raise SystemExit(f"refspatial-gen sim: recipe {args.recipe} has no sim source")
+        raise SystemExit(f"refspatial-gen sim: {args.recipe or DEFAULT_RECIPE}: no sim source")
     seed = recipe.seed if args.seed is None else args.seed
     base = {k: v for k, v in spec.config.items() if not k.startswith("_")}
     return (lambda key: unit_rng(seed, f"s{spec.index}/{key}")), _config(args, base)
 
 
-def cmd_assets_list(args: argparse.Namespace) -> int:
-    from refspatial_gen.assets import load_catalog
-    from refspatial_gen.assets.external import external_available
-
-    cat = load_catalog(args.catalog or None)
-    rows = []
-    for n, c in cat.categories.items():
-        rows.append(
-            {
-                "name": n,
-                "label": c.label,
-                "builder": c.builder,
-                "scale": c.scale,
-                "dims": {k: list(v) for k, v in c.dims.items()},
-                "colors": list(c.colors),
-                "materials": list(c.materials),
-                "front": None if c.front is None else list(c.front),
-                "front_phrase": c.front_phrase,
-                "fits_inside": c.fits_inside,
-                "available": c.builder != "external" or external_available(c),
-            }
-        )
-    if args.json:
-        print(json.dumps({"catalog": cat.path, "categories": rows}, indent=1, sort_keys=True))
-        return 0
-    print(f"{len(rows)} categories in {cat.path}")
-    for r in rows:
-        front = f"front: {r['front_phrase']}" if r["front_phrase"] else ""
-        avail = "" if r["available"] else "  (mesh file missing)"
-        print(f"  {r['name']:22s} {r['scale']:8s} {r['builder']:11s} {','.join(r['colors'][:5]):34s} {front}{avail}")
-    return 0
-
-
-def cmd_usd(args: argparse.Namespace) -> int:
+def cmd_usd(args) -> int:
     from refspatial_gen.assets import load_catalog
     from refspatial_gen.sources.sim import generate
     from refspatial_gen.sources.sim.usd import export_usd
 
     rng_for, cfg = run_unit(args)
     frames, desc, sim = generate(args.unit, rng_for(args.unit), cfg, keep_scene=True)
-    out = export_usd(desc, sim, frames, args.out, load_catalog(cfg.get("catalog") or None).colors)
+    from refspatial_gen.sources.sim.source import catalog_paths
+
+    out = export_usd(desc, sim, frames, args.out, load_catalog(catalog_paths(cfg.get("catalog")) or None).colors)
     print(f"wrote {out} ({len(desc.objects)} objects, {len(frames)} cameras)")
     return 0
 
 
-def cmd_gallery(args: argparse.Namespace) -> int:
+def cmd_describe(args) -> int:
+    """The renderer-neutral description of one settled scene (what a second renderer draws)."""
+    from refspatial_gen.assets import load_catalog
+    from refspatial_gen.sources.sim import generate
+    from refspatial_gen.sources.sim.scene import SettledScene
+    from refspatial_gen.sources.sim.source import catalog_paths
+
+    rng_for, cfg = run_unit(args)
+    frames, desc, sim = generate(args.unit, rng_for(args.unit), cfg, keep_scene=True)
+    cat = load_catalog(catalog_paths(cfg.get("catalog")) or None)
+    scene = SettledScene(desc, sim, cat.colors, cat.materials).describe([f.camera for f in frames])
+    out = scene.save(args.out)
+    print(
+        f"wrote {out}/scene.json ({len(scene.meshes)} meshes, {len(scene.lights)} lights, {len(scene.cameras)} cameras)"
+    )
+    return 0
+
+
+def cmd_gallery(args) -> int:
     from refspatial_gen.sources.sim.gallery import gallery
 
     rng_for, cfg = run_unit(args)
@@ -97,33 +85,27 @@ def cmd_gallery(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_bench(args: argparse.Namespace) -> int:
+def cmd_bench(args) -> int:
     from refspatial_gen.sources.sim.bench import stage_times
 
-    print(json.dumps(stage_times(args.scenes, args.seed or 0, _config(args)), indent=1, sort_keys=True))
+    _, cfg = run_unit(args)
+    print(json.dumps(stage_times(args.scenes, args.seed or 0, cfg), indent=1, sort_keys=True))
     return 0
 
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    a = sub.add_parser("assets", help="asset catalog of the simulated source")
-    asub = a.add_subparsers(dest="assets_command", required=True)
-    ls = asub.add_parser("list", help="list catalog categories")
-    ls.add_argument("--json", action="store_true")
-    ls.add_argument("--catalog", default="", help="catalog YAML (default assets/catalog.yaml)")
-    ls.set_defaults(func=cmd_assets_list)
-
+def register(sub: argparse._SubParsersAction) -> None:
     s = sub.add_parser("sim", help="simulated scenes: USD export, preview gallery, timing")
     ssub = s.add_subparsers(dest="sim_command", required=True)
 
-    def common(p: argparse.ArgumentParser) -> None:
-        p.add_argument(
-            "--recipe",
-            default=str(DEFAULT_RECIPE),
-            help="the run whose scenes to show: its sim source config, seed and unit seeding",
-        )
+    def common(p):
         p.add_argument("--seed", type=int, default=None, help="run seed (default: the recipe's)")
         p.add_argument("--catalog", default="")
         p.add_argument("--layout", choices=["tabletop", "room"], default=None)
+        p.add_argument(
+            "--recipe",
+            default="",
+            help="the run whose scenes to show: its sim config, seed and unit seeding (default recipes/default.yaml)",
+        )
         p.add_argument("--external-prob", type=float, default=None, dest="external_prob")
         p.add_argument("--views", type=int, default=None)
 
@@ -132,6 +114,13 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     u.add_argument("--out", required=True)
     common(u)
     u.set_defaults(func=cmd_usd)
+    d = ssub.add_parser(
+        "describe", help="write one scene's renderer-neutral description (scene.json, meshes.npz, textures)"
+    )
+    d.add_argument("--unit", default="sim:000000")
+    d.add_argument("--out", required=True, help="folder")
+    common(d)
+    d.set_defaults(func=cmd_describe)
     g = ssub.add_parser("gallery", help="contact sheet of generated scenes (PNG or JPEG)")
     g.add_argument("--out", required=True)
     g.add_argument("--scenes", type=int, default=24)
