@@ -21,7 +21,6 @@ ALLOWED = {
     "sources/image/source.py:build_frame",
     "sources/image/boxseg.py:assign_boxes",
     "sources/scan/frames.py:view_to_frame",
-    "sources/sim/physics.py:build_model",
     "depth/geometric.py:estimate",
 }
 
