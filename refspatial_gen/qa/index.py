@@ -19,6 +19,7 @@ from refspatial_gen.core.mask import denormalise_point
 from refspatial_gen.core.model import Frame, FreeSpaceRegion, Node, SceneGraph
 from refspatial_gen.graph.relations.base import HOLDS_OF_CODE, Cell
 from refspatial_gen.graph.tables import RelationTables
+from refspatial_gen.qa.ops.base import REGION_KINDS
 
 _MISS = object()
 NO_FACT = object()  # decision(): the relation was not evaluated for these arguments
@@ -313,7 +314,7 @@ class SceneIndex:
         only from such an instance, so without one an `at` step keeps nothing."""
         v = self._has_true_spot
         if v is None:
-            v = self._has_true_spot = any(f.holds is True for rel in ("corner", "edge") for f in self.facts_of(rel))
+            v = self._has_true_spot = any(f.holds is True for rel in REGION_KINDS for f in self.facts_of(rel))
         return v
 
     @property

@@ -17,7 +17,6 @@ from refspatial_gen.qa import lexicon
 from refspatial_gen.qa.index import Reject, SceneIndex
 from refspatial_gen.qa.keysteps import check_key_phrases, key_steps, one
 from refspatial_gen.qa.ops.base import BOOL, NUMBER
-from refspatial_gen.qa.ops.mark import style_of
 from refspatial_gen.qa.ops.measure import QUANTITIES
 from refspatial_gen.qa.program import Ref, Step, Template
 from refspatial_gen.qa.render import LETTERS, fmt_angle, fmt_choices, fmt_length, fmt_points, fmt_trace, fmt_turn
@@ -65,7 +64,7 @@ def plan_record(t: Template) -> RecordPlan:
         default_of = (prev_name,) if st.impl.implicit_of and "of" not in st.args else None
         program.append((st, _arg_plan(t, st), default_in, default_of))
         prev_name = st.name
-    marks = [style_of(st) for st in t.steps if st.op == "mark"]
+    marks = [s for st in t.steps if (s := st.impl.mark_style(st)) is not None]
     return RecordPlan(
         frozenset(rel),
         tuple(n for n, s in t.slots.items() if s.type == "relation"),

@@ -114,6 +114,10 @@ class Op:
     def key_extra(self, st: Step) -> Any:
         return None
 
+    def mark_style(self, st: Step) -> str | None:
+        """How the step draws marks on the image ("box", "point"), or None when it draws none."""
+        return None
+
     # ------------------------------------------------------------------ verify
     def verify(self, run: Run, a: dict[str, Any], prev: Any, st: dict[str, Any]) -> Any:
         """Re-derive the step from a stored record on the frame's raw geometry (qa/verify_world.py); raise

@@ -34,6 +34,9 @@ class Mark(Op):
         pick = ctx.rng.choice(len(s), size=n, replace=False)
         return tuple(s[int(k)] for k in pick)
 
+    def mark_style(self, st: Step) -> str | None:
+        return style_of(st)
+
     def replay(self, st: Step, fn: StepFn, local: dict[str, Any], prev: Any, ctx: Context, env: dict[str, Any]) -> Any:
         return env[st.name]  # the drawn marks are part of the question
 
