@@ -1,0 +1,81 @@
+"""Truth checks of the image source: the photo's camera fitted to its objects, and lifted sizes checked
+against their category's range (refspatial_gen/truth). See docs/image.md and docs/quality.md.
+
+- `fit_photo_camera`: geometric depth only. Objects of ranged, ground-standing categories whose foot
+  and top are in the picture and that have no other object under their foot fix the camera height and
+  pitch of the whole photo (depth/camera_fit.py); the recipe's camera is the prior.
+- `check_sizes`: after lifting, an object whose box is outside its category's range is removed
+  (reason `size_too_tall`, `size_too_short`, ...; counted in `frame.meta["truth"]`). Extents a single
+  view cannot see whole are only checked from above: the horizontal extent always, the height when
+  the top is cut by the image border or (measured depth) always, since nothing completes a hidden
+  foot there. Unranged categories are kept and marked `provenance["size_check"] = "size_unranged"`:
+  the graph must not ask metric or size questions about them.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from refspatial_gen.depth.camera_fit import Anchor, CameraFit, anchor_usable, fit_camera
+from refspatial_gen.truth.sizes import IMPLAUSIBLE, UNRANGED, check_size
+
+
+def photo_anchors(cands: list, H: int, W: int, cfg_share: float = 0.1) -> list[Anchor]:
+    """Anchors for the camera fit: live candidates of anchor categories, foot and top inside the
+    picture, no other object's mask right under `cfg_share` of the foot (it might rest on it or stand
+    behind it)."""
+    from refspatial_gen.depth.geometric import _Obj, object_below
+
+    ids = np.zeros((H, W), np.int64)
+    for k, c in enumerate(cands):
+        ids[c.mask & (ids == 0)] = k + 1
+    out = []
+    for k, c in enumerate(cands):
+        if not anchor_usable(c.category):
+            continue
+        ys, xs = np.nonzero(c.mask)
+        if ys.size == 0 or ys.max() >= H - 1 or ys.min() <= 0:
+            continue
+        o = _Obj(k + 1, c.mask, ys, xs, int(ys.max()), 0.0, c.category)
+        if object_below(o, ids)[1] >= float(cfg_share):
+            continue
+        out.append(Anchor(k + 1, c.category, float(ys.max() + 1), float(ys.min())))
+    return out
+
+
+def fit_photo_camera(cands: list, H: int, W: int, fy: float, cy: float, cam_h: float, pitch: float,
+                     cfg: dict[str, Any]) -> CameraFit:
+    """The photo's camera (height, pitch) from its anchors, the recipe's values as the prior."""
+    if not cfg.get("fit_camera", True):
+        return CameraFit(cam_h, pitch, "prior", 0, [], "unverified")
+    lo_p, hi_p = (float(x) for x in cfg["fit_pitch_range_deg"])
+    lo_h, hi_h = (float(x) for x in cfg["fit_height_range"])
+    return fit_camera(photo_anchors(cands, H, W), fy, cy, cam_h, pitch, (lo_p, hi_p), (lo_h, hi_h),
+                      float(cfg["fit_min_inlier_share"]), min_anchors=int(cfg["fit_min_anchors"]))
+
+
+def check_sizes(cands: list, cfg: dict[str, Any], measured: bool, truth: dict[str, int]) -> None:
+    """Drop lifted candidates outside their category's range (see the module docstring); counts the
+    reasons into `truth`."""
+    from refspatial_gen.sources.image.filters import drop
+
+    for c in cands:
+        if c.reason is not None or c.box is None:
+            continue
+        top_cut = bool(np.nonzero(c.mask.any(axis=1))[0].min() == 0) if c.mask.any() else True
+        lower = {"extent", "length"}
+        if measured or top_cut:
+            lower.add("height")
+        why = check_size(c.category, c.box.size, dims=("height", "length", "extent"), tolerance=float(cfg["size_tolerance"]),
+                         lower_bounds=lower)
+        if why == UNRANGED:
+            c.provenance["size_check"] = UNRANGED
+        elif why in IMPLAUSIBLE:
+            c.provenance["size_check"] = why
+            if cfg.get("size_check", True):
+                drop(c, why)
+                truth[why] = truth.get(why, 0) + 1
+        else:
+            c.provenance["size_check"] = "in_range"
