@@ -110,9 +110,6 @@ def test_geometric_occluded_object_stands_behind_not_on():
     assert d > notes["1"]["contact_depth"] + 1.0  # behind the car in front (and its 1.2 m depth)
     top = 1.2 - d * (55.0 - 60.0) / 100.0  # its top edge's height at that distance
     assert abs(top - 1.5) < 1e-6
-    # the old rule (rest on whatever lies under the foot) is what bearing and the contact test replace
-    notes = get_estimator("geometric", {"bearing": False, "contact_band": 0.0}).estimate(None, p).meta["objects"]
-    assert notes["2"]["contact"] != "behind:1"
 
 
 def test_geometric_contact_must_be_seen_on_the_top_surface():

@@ -169,19 +169,23 @@ class GeometricDepth:
 
     def _behind_depth(self, o: _Obj, z_occluder: float, h: float, pitch: float, P: CameraPrior,
                       thickness: float) -> float | None:
-        """Horizontal distance of an object standing on the ground behind an occluder, from its top row
-        at its category's typical height; never nearer than the occluder's back (`z_occluder` +
-        `thickness`). None when the category has no typical height or the top row is cut/near-horizon."""
+        """Horizontal distance of an object standing on the ground behind an occluder: where its top row
+        puts its top at its category's typical height, but never nearer than the occluder's back
+        (`z_occluder` + `thickness`); the height that distance implies must be inside the category's
+        range. None when the category has no typical height, the top row is cut by the border or near
+        the horizon, or no distance behind the occluder gives a plausible height."""
         hb = height_bounds(o.category)
         if self.occluded == "drop" or hb is None or hb[2] is None or int(o.ys.min()) == 0:
             return None
-        t = pitch + np.arctan((float(o.ys.min()) - P.cy) / P.fy)  # the top edge's angle below horizontal
-        if abs(np.tan(t)) < 0.02:
+        t = np.tan(pitch + np.arctan((float(o.ys.min()) - P.cy) / P.fy))  # the top edge's slope below horizontal
+        if abs(t) < 0.02:
             return None
-        d = (h - hb[2]) / np.tan(t)
-        if d <= 0:
+        d_typ = (h - hb[2]) / t
+        d = max(d_typ if d_typ > 0 else 0.0, z_occluder + thickness)
+        height = h - d * t
+        if not (hb[0] / 1.15 <= height <= hb[1] * 1.15):
             return None
-        return float(max(d, z_occluder + thickness))
+        return float(d)
 
     def _on_or_behind(self, o: _Obj, b: _Obj, z_b: float, P: CameraPrior, share: float) -> str:
         """"on" when `o` may rest on `b` (enough of its foot on it, bearing, visible contact, plausible
@@ -225,7 +229,10 @@ class GeometricDepth:
         below: dict[int, tuple[int, float]] = {}
         for oid, o in info.items():
             k, share = object_below(o, ids) if self.support else (0, 0.0)
-            below[oid] = (k, share) if share >= min(self.occluded_share, self.rest_share) and k else (0, 0.0)
+            # what bears or hides a foot reaches lower in the picture than that foot (a rider's shoe under
+            # the pedal does not hide the bicycle's wheels): the relation is acyclic
+            ok = k and share >= min(self.occluded_share, self.rest_share) and info[k].vb > o.vb
+            below[oid] = (k, share) if ok else (0, 0.0)
         order = sorted(info, key=lambda i: (-info[i].vb, i))  # lowest in the image first
         pending = list(order)
         progress = True

@@ -39,7 +39,8 @@ def photo_anchors(cands: list, H: int, W: int, cfg_share: float = 0.1) -> list[A
         if ys.size == 0 or ys.max() >= H - 1 or ys.min() <= 0:
             continue
         o = _Obj(k + 1, c.mask, ys, xs, int(ys.max()), 0.0, c.category)
-        if object_below(o, ids)[1] >= float(cfg_share):
+        b, share = object_below(o, ids)
+        if b and share >= float(cfg_share) and np.nonzero(cands[b - 1].mask.any(axis=1))[0].max() > o.vb:
             continue
         out.append(Anchor(k + 1, c.category, float(ys.max() + 1), float(ys.min())))
     return out
