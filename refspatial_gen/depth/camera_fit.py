@@ -89,17 +89,17 @@ def fit_camera(anchors: list[Anchor], fy: float, cy: float, prior_height: float,
     ab = np.arctan((np.array([a.v_bottom for a in use]) - cy) / fy)
     at = np.arctan((np.array([a.v_top for a in use]) - cy) / fy)
     lh0, lh1 = np.log(height_range[0]), np.log(height_range[1])
-    best = None
-    for deg in np.arange(pitch_range[0], pitch_range[1] + 1e-9, 0.25):
+
+    def score(deg: float):
         th = np.deg2rad(deg)
         ok = (th + ab) > MIN_BELOW_HORIZON
         if not ok.any():
-            continue
+            return None
         g = 1.0 - np.tan(th + at[ok]) / np.tan(th + ab[ok])
         ok_idx = np.flatnonzero(ok)[g > 1e-6]
         g = g[g > 1e-6]
         if not len(g):
-            continue
+            return None
         lg = np.log(g)
         lo, hi = np.clip(lo_h[ok_idx] - lg, lh0, lh1), np.clip(hi_h[ok_idx] - lg, lh0, lh1)
         count, a, b = _stab(lo, hi)
@@ -111,11 +111,21 @@ def fit_camera(anchors: list[Anchor], fy: float, cy: float, prior_height: float,
         c = (np.log1p(((grid[:, None] - t[None, :]) / TYPICAL_SPREAD) ** 2).sum(axis=1)
              + ((grid - np.log(prior_height)) / prior_sigma_log_height) ** 2)
         k = int(np.argmin(c))
-        lh = float(grid[k])
         cost = float(c[k] + ((deg - np.rad2deg(prior_pitch)) / prior_sigma_pitch_deg) ** 2)
-        key = (count, -cost)
-        if best is None or key > best[0]:
-            best = (key, th, lh, [use[i].key for i in ok_idx[inside]])
+        return (count, -cost), th, float(grid[k]), [use[i].key for i in ok_idx[inside]]
+
+    # coarse to fine: 1 degree steps over the range, then 0.1 degree around the best
+    best = None
+    for deg in np.arange(pitch_range[0], pitch_range[1] + 1e-9, 1.0):
+        r = score(float(deg))
+        if r is not None and (best is None or r[0] > best[0]):
+            best = r
+    if best is not None:
+        c0 = float(np.rad2deg(best[1]))
+        for deg in np.arange(max(pitch_range[0], c0 - 1.0), min(pitch_range[1], c0 + 1.0) + 1e-9, 0.1):
+            r = score(float(deg))
+            if r is not None and r[0] > best[0]:
+                best = r
     if best is None:
         return CameraFit(prior_height, prior_pitch, "prior", len(use), [], "inconsistent")
     (count, _), th, lh, keys = best

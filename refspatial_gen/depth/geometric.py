@@ -76,14 +76,14 @@ def object_below(o: _Obj, owner: np.ndarray) -> tuple[int, float]:
     cols = np.unique(o.xs)
     low = np.full(owner.shape[1], -1)
     np.maximum.at(low, o.xs, o.ys)
-    hits: dict[int, int] = {}
-    for x in cols:
-        y = low[x]
-        for dy in (1, 2):
-            if y + dy < H and owner[y + dy, x] not in (0, o.oid):
-                k = int(owner[y + dy, x])
-                hits[k] = hits.get(k, 0) + 1
-                break
+    y = low[cols]
+    hit = np.zeros(len(cols), np.int64)
+    for dy in (2, 1):  # the nearer row wins
+        ok = y + dy < H
+        k = np.where(ok, owner[np.minimum(y + dy, H - 1), cols], 0)
+        k = np.where((k == o.oid), 0, k)
+        hit = np.where(k > 0, k, hit)
+    hits = {int(k): int(n) for k, n in zip(*np.unique(hit[hit > 0], return_counts=True))}
     if not hits:
         return 0, 0.0
     k = max(sorted(hits), key=lambda i: hits[i])
