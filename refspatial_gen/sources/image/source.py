@@ -93,6 +93,9 @@ CONFIG_FIELDS: dict[str, Field] = {
                                                          "as verified (one object fits any camera)"),
     "size_check": Field(bool, default=True, doc="remove objects whose lifted box is outside their category's range"),
     "size_tolerance": Field(float, default=0.0, min=0.0, max=1.0, doc="ranges are widened by this fraction"),
+    "max_box_overlap": Field(float, default=0.25, min=0.0, max=1.0,
+                             doc="geometric depth: two boxes sharing more of the smaller one's volume pass through "
+                                 "each other; the occluded one is removed (1 = off)"),
 }
 
 
@@ -411,6 +414,10 @@ def build_frame(coll: Collection, rec: ImageRecord, rng: np.random.Generator, cf
     from refspatial_gen.sources.image.truthcheck import check_sizes
 
     check_sizes(cands, cfg, est_name != "geometric", truth)
+    if est_name == "geometric" and cfg["max_box_overlap"] < 1.0:
+        from refspatial_gen.sources.image.truthcheck import check_interpenetration
+
+        check_interpenetration(cands, float(cfg["max_box_overlap"]), truth)
     F.instances_not_spread(cands, cfg["min_instance_spread"])
     F.too_many_instances(cands, cfg["max_instances_per_category"])
     if cfg["complete_categories"]:
