@@ -24,10 +24,11 @@ $(STAMP): pyproject.toml
 	@rm -f $(VENV)/.installed-[0-9a-f]*
 	@touch $@
 
-# the tests also need the optional extras: Ray (scale-out), torch + transformers + onnxruntime (depth models)
+# the tests also need the optional extras: Ray (scale-out), torch + transformers + onnxruntime (depth models),
+# HF datasets + pyarrow (Parquet export)
 $(TEST_STAMP): $(STAMP)
-	@echo "installing test extras (pytest, hypothesis, ray, torch CPU, transformers, onnxruntime)"
-	@$(BIN)/python -m pip install -q -e '.[test,ray,depth,dev]'
+	@echo "installing test extras (pytest, hypothesis, ray, torch CPU, transformers, onnxruntime, datasets)"
+	@$(BIN)/python -m pip install -q -e '.[test,ray,depth,dev,datasets]'
 	@rm -f $(VENV)/.installed-test-*
 	@touch $@
 
