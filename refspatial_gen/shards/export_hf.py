@@ -53,12 +53,13 @@ def _write(rows: list[dict], path: Path, features) -> None:
     pq.write_table(table, path, compression="zstd", row_group_size=ROW_GROUP, write_statistics=False)
 
 
-def _card(features, n: int, files: list[str]) -> str:
+def _card(features, n: int, files: list[str], size: int) -> str:
     """A minimal dataset card: YAML `dataset_info` with the features and the data files of the split."""
     import yaml
 
     info = {"configs": [{"config_name": "default", "data_files": [{"split": "train", "path": "data/train-*.parquet"}]}],
-            "dataset_info": {"features": features._to_yaml_list(), "splits": [{"name": "train", "num_examples": n}]}}
+            "dataset_info": {"features": features._to_yaml_list(),
+                             "splits": [{"name": "train", "num_examples": n, "num_bytes": size}]}}
     return "---\n" + yaml.safe_dump(info, sort_keys=True) + "---\n\nExported by refspatial-gen (`export --format hf`): " \
         f"{n} samples in {len(files)} Parquet files.\n"
 
@@ -89,8 +90,9 @@ def export_hf(raws: Iterable[RawSample], out: Path | str, *, samples_per_shard: 
     if rows or not files:
         files.append(f"data/train-{len(files):05d}.parquet")
         _write(rows, out / files[-1], features)
-    (out / "README.md").write_text(_card(features, n, files))
-    return {"files": files, "samples": n, "bytes": sum((out / f).stat().st_size for f in files)}
+    size = sum((out / f).stat().st_size for f in files)
+    (out / "README.md").write_text(_card(features, n, files, size))
+    return {"files": files, "samples": n, "bytes": size}
 
 
 def check_export(out: Path, raws: Iterable[RawSample]) -> list[str]:
