@@ -13,7 +13,7 @@ PYTEST_ARGS ?=
 export MUJOCO_GL ?= egl
 export PYOPENGL_PLATFORM ?= egl
 
-.PHONY: setup setup-test shards test test-slow test-all bench preview lint clean
+.PHONY: setup setup-test shards test test-slow test-all bench preview lint clean audit
 
 $(STAMP): pyproject.toml
 	@bash scripts/ensure-system-libs.sh
@@ -52,6 +52,22 @@ bench: setup-test
 
 preview: setup
 	$(BIN)/refspatial-gen preview $(OUT) --out out/preview
+
+# The audit sample of docs/quality.md, reproducible from this one command: five datasets (default sim, sim with
+# the external YCB meshes, SUN RGB-D and ScanNet scans, COCO photos), then a stratified sample of AUDIT_N pairs.
+SHARED ?= $(or $(REFSPATIAL_SHARED_DATA),../shared/data)
+AUDIT_DATA ?= out/audit-data
+AUDIT_OUT ?= out/audit
+AUDIT_N ?= 150
+AUDIT_RUN = $(BIN)/refspatial-gen shards --quiet --workers $(WORKERS)
+audit: setup
+	$(AUDIT_RUN) --recipe recipes/default.yaml --scenes 24 --out $(AUDIT_DATA)/sim
+	$(AUDIT_RUN) --recipe recipes/sim_ycb.yaml --scenes 24 --out $(AUDIT_DATA)/ycb
+	$(AUDIT_RUN) --recipe recipes/scan.yaml --input $(SHARED)/sunrgbd --out $(AUDIT_DATA)/scan-sun
+	$(AUDIT_RUN) --recipe recipes/scan.yaml --input $(SHARED)/scannet_scene0000_00 --out $(AUDIT_DATA)/scan-scannet
+	$(AUDIT_RUN) --recipe recipes/image.yaml --input $(SHARED)/coco_tiny_train2017 --out $(AUDIT_DATA)/photos
+	$(BIN)/refspatial-gen audit sim=$(AUDIT_DATA)/sim ycb=$(AUDIT_DATA)/ycb scan=$(AUDIT_DATA)/scan-sun \
+	  scan=$(AUDIT_DATA)/scan-scannet photos=$(AUDIT_DATA)/photos --n $(AUDIT_N) --seed 0 --out $(AUDIT_OUT)
 
 lint: setup
 	$(BIN)/refspatial-gen recipes lint recipes/*.yaml recipes/templates/*.yaml
