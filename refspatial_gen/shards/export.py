@@ -41,15 +41,18 @@ class RawSource:
     """
 
     def __init__(self, shard_dir: Path | str) -> None:
-        self.dir = Path(shard_dir)
-        self.rows = read_index(self.dir)["shards"]
+        self.shard_dir = Path(shard_dir)  # exporters that need the index (splits) read it from here
+        self.rows = read_index(self.shard_dir)["shards"]
 
     def __len__(self) -> int:
         return sum(int(s["samples"]) for s in self.rows)
 
     def __iter__(self) -> Iterator[RawSample]:
         for s in self.rows:
-            yield from iter_raw(self.dir / s["name"])
+            yield from iter_raw(self.shard_dir / s["name"])
+
+
+DirSamples = RawSource  # the name other exporters use for "the samples of a shard directory"
 
 
 def iter_dir(shard_dir: Path | str) -> Iterator[RawSample]:

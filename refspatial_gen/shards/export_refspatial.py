@@ -36,6 +36,7 @@ from refspatial_gen.shards.marks import marked_pngs, marks_of
 from refspatial_gen.shards.records import strip_tokens
 
 MAX_PAIRS = 15
+_EXT = EXT  # older name, imported by other exporters
 
 
 def safe_name(s: str) -> str:
