@@ -152,3 +152,12 @@ def test_cli_format_choices_come_from_the_table(capsys):
     err = capsys.readouterr().err
     for name in EXPORTERS:
         assert name in err
+
+
+def test_overwrite_never_targets_the_shards_themselves(two_datasets, tmp_path, monkeypatch):
+    a, _ = two_datasets
+    for target in (a, a.parent, tmp_path):
+        monkeypatch.chdir(tmp_path)
+        with pytest.raises(ExportError, match="refusing"):
+            export(a, "jsonl", target, overwrite=True)
+    assert (a / "index.json").is_file() and (a / "shard-00000.mcap").is_file()

@@ -112,6 +112,10 @@ def export(shard_dir: Path | str, fmt: str, out: Path | str, *, overwrite: bool 
     kw = _options_for(fn, options)
     src = RawSource(shard_dir)
     out = Path(out)
+    here, there = src.shard_dir.resolve(), out.resolve()
+    if there == here or there in here.parents or there == Path.cwd().resolve() or there.parent == there:
+        raise ExportError(f"{out}: refusing to export into the shard folder, a folder containing it, the current "
+                          f"folder or the file system root (--overwrite would replace it)")
     tmp = _prepare(out, overwrite)
     try:
         res = fn(src, tmp, **kw)
