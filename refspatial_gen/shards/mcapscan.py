@@ -11,9 +11,13 @@ from __future__ import annotations
 
 import mmap
 import struct
-import zlib
 from pathlib import Path
 from typing import Iterator
+
+try:  # the same CRC-32 as zlib, about 5x faster (ISA-L): checking every CRC costs little next to zstd
+    from isal.isal_zlib import crc32
+except ImportError:  # pragma: no cover - isal is a pinned dependency; zlib gives identical values
+    from zlib import crc32
 
 MAGIC = b"\x89MCAP0\r\n"
 OP_HEADER, OP_FOOTER, OP_CHANNEL, OP_MESSAGE, OP_CHUNK, OP_DATA_END = 0x01, 0x02, 0x04, 0x05, 0x06, 0x0F
@@ -129,7 +133,7 @@ def _scan(path: Path | str, validate_crcs: bool) -> Iterator[tuple[str, int, byt
                         raise ScanError("corrupt", f"unsupported chunk compression {comp!r}")
                     if len(data) != usize:
                         raise ScanError("corrupt", f"chunk at byte {pos} has {len(data)} bytes, expected {usize}")
-                    if validate_crcs and crc and zlib.crc32(data) != crc:
+                    if validate_crcs and crc and crc32(data) != crc:
                         raise ScanError("corrupt", f"chunk at byte {pos} fails its CRC check")
                     yield from _inner(data, channels)
                 elif op == OP_CHANNEL:
@@ -158,7 +162,7 @@ def _check_data_crc(m: mmap.mmap, data_end: int, crc: int) -> None:
     if crc:
         view = memoryview(m)
         try:
-            got = zlib.crc32(view[:data_end])
+            got = crc32(view[:data_end])
         finally:
             view.release()
         if got != crc:
@@ -184,7 +188,7 @@ def _check_footer(m: mmap.mmap, size: int, after_data: int, validate_crcs: bool)
             raise ScanError("corrupt", f"footer names summary start {start}, outside the file")
         view = memoryview(m)
         try:
-            got = zlib.crc32(view[lo: fpos + 9 + 16])
+            got = crc32(view[lo: fpos + 9 + 16])
         finally:
             view.release()
         if got != crc:
