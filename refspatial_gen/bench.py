@@ -3,7 +3,8 @@
 Sections: the simulated pipeline end to end with a per-stage breakdown and peak memory; QA generation
 from cached scene graphs; the image source per image; streaming reads vs. WebDataset; read throughput
 of every export format on the same samples; and the run executor's scaling from 1 to 2 workers and its
-memory when the number of scenes grows 10x.
+memory when the number of scenes grows 10x. Opt-in (`--rewrite`, `make bench REWRITE=1`): LLM rewrites
+per second and the share accepted against the local llama.cpp server (refspatial_gen/rewrite/bench.py).
 """
 
 from __future__ import annotations
@@ -127,15 +128,41 @@ def bench_scaling(scenes: int, mem_scenes: int, work: Path) -> dict[str, Any]:
     return out
 
 
+def bench_eval(scenes: int, work: Path) -> dict[str, Any]:
+    """`refspatial-gen eval` on `scenes` default-recipe scenes: loading the ground truth (masks, free-space
+    regions) and scoring gold predictions with every reward, in QA pairs per second."""
+    from refspatial_gen.eval.baselines import predict
+    from refspatial_gen.eval.dataset import load_items
+    from refspatial_gen.eval.predictions import parse_predictions
+    from refspatial_gen.eval.score import evaluate
+    from refspatial_gen.recipe import load_recipe
+    from refspatial_gen.run.executor import RecipeRef, run_plan
+
+    d = work / "eval"
+    run_plan(load_recipe(DEFAULT_RECIPE, scenes=scenes), RecipeRef(str(DEFAULT_RECIPE), None, scenes, None), d,
+             workers=1, progress=False, fresh=True)
+    t0 = time.perf_counter()
+    items = load_items(d)
+    t1 = time.perf_counter()
+    preds = parse_predictions([json.dumps({"id": i, "text": t}) for i, t in predict("gold", items).items()], [it.id for it in items])
+    recs = evaluate(items, preds)
+    t2 = time.perf_counter()
+    return {"qa_pairs": len(items), "load_gold_qa_per_s": round(len(items) / (t1 - t0), 1),
+            "score_qa_per_s": round(len(items) / (t2 - t1), 1), "gold_success": sum(r["success"] for r in recs) / len(recs)}
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m refspatial_gen.bench", description=__doc__)
     ap.add_argument("--scenes", type=int, default=24, help="scenes for the simulated pipeline")
     ap.add_argument("--scale-scenes", type=int, default=96, help="scenes for the 1 vs 2 worker scaling run")
     ap.add_argument("--mem-scenes", type=int, default=16, help="scenes for the memory run (and 10x as many)")
-    ap.add_argument("--only", nargs="*", default=None, choices=["sim", "qa", "image", "stream", "formats", "scale"])
+    ap.add_argument("--only", nargs="*", default=None,
+                    choices=["sim", "qa", "image", "stream", "formats", "scale", "eval", "rewrite"])
+    ap.add_argument("--rewrite", action="store_true", help="add the (slow) LLM rewrite section")
+    ap.add_argument("--rewrite-scenes", type=int, default=2, help="default-recipe scenes whose pairs are rewritten")
     ap.add_argument("--json", default=None, help="also write the figures to this file")
     args = ap.parse_args(argv)
-    sections = args.only or ["sim", "qa", "image", "stream", "formats", "scale"]
+    sections = args.only or ["sim", "qa", "image", "stream", "formats", "scale", "eval"] + (["rewrite"] if args.rewrite else [])
     figures: dict[str, Any] = {"machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.python_version()}"}
     work = Path(tempfile.mkdtemp(prefix="refspatial-bench-"))
     try:
@@ -161,6 +188,12 @@ def main(argv: list[str] | None = None) -> int:
                 figures["formats"] = format_throughput(shard_dir, work_dir=work / "formats-out")
             elif name == "scale":
                 figures["scale"] = bench_scaling(args.scale_scenes, args.mem_scenes, work)
+            elif name == "eval":
+                figures["eval"] = bench_eval(args.scenes, work)
+            elif name == "rewrite":
+                from refspatial_gen.rewrite.bench import bench_rewrite
+
+                figures["rewrite"] = bench_rewrite(work, args.rewrite_scenes)
             print(f"== {name} ({time.perf_counter() - t0:.1f} s)\n{json.dumps(figures[name], indent=2)}", flush=True)
     finally:
         shutil.rmtree(work, ignore_errors=True)

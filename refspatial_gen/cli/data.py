@@ -11,7 +11,8 @@ from pathlib import Path
 def register(sub) -> None:
     from refspatial_gen.shards.export import EXPORTERS
 
-    p = sub.add_parser("export", help="export a shard directory for a trainer: " + ", ".join(EXPORTERS),
+    p = sub.add_parser("export", help="export a shard directory to a trainer's or benchmark's layout: "
+                       + ", ".join(EXPORTERS) + " (docs/shards.md, docs/eval.md)",
                        description="Export into a new folder (written beside it, checked, then renamed into place). "
                                    "Every shard is checked against index.json as it is read.")
     p.add_argument("dir", help="shard directory (with index.json)")
@@ -22,6 +23,8 @@ def register(sub) -> None:
                    help="webdataset/hf: samples per tar or Parquet file (default: about 16 files, at most 256 each)")
     p.add_argument("--no-check", action="store_true",
                    help="skip the up-front check of the whole folder (each shard is still verified as it is read)")
+    p.add_argument("--split", action="append", choices=["train", "val", "test", "unseen"],
+                   help="sft, rft, refspatial-bench: splits to write (repeatable; defaults: train / train / test)")
     p.set_defaults(func=cmd_export)
 
     q = sub.add_parser("inspect", help="a readable summary of one shard's samples")
@@ -46,9 +49,14 @@ def cmd_export(args) -> int:
             for pr in problems:
                 print(f"{pr['file']}: {pr['problem']}: {pr['detail']}", file=sys.stderr)
             return _fail(f"{args.dir}: {len(problems)} integrity problem(s); nothing exported")
+    kw = {}
+    if args.split:
+        if args.format not in ("sft", "rft", "refspatial-bench"):
+            return _fail(f"--split applies to the sft, rft and refspatial-bench formats, not {args.format}")
+        kw["splits"] = tuple(args.split)
     try:
         res = export(Path(args.dir), args.format, Path(args.out), overwrite=args.overwrite,
-                     samples_per_shard=args.samples_per_shard)
+                     samples_per_shard=args.samples_per_shard, **kw)
     except (ValueError, OSError) as e:  # ShardError and ExportError are ValueErrors and name the file
         return _fail(str(e))
     except ImportError as e:

@@ -29,6 +29,9 @@ EXPORTERS: dict[str, str] = {
     "webdataset": "refspatial_gen.shards.export_webdataset:export_webdataset",
     "jsonl": "refspatial_gen.shards.export_jsonl:export_jsonl",
     "hf": "refspatial_gen.shards.export_hf:export_hf",
+    "sft": "refspatial_gen.shards.export_sft:export_sft",
+    "rft": "refspatial_gen.shards.export_rft:export_rft",
+    "refspatial-bench": "refspatial_gen.shards.export_refspatial_bench:export_refspatial_bench",
 }
 FORMATS = tuple(EXPORTERS)
 
@@ -55,9 +58,10 @@ class RawSource:
 DirSamples = RawSource  # the name other exporters use for "the samples of a shard directory"
 
 
-def iter_dir(shard_dir: Path | str) -> Iterator[RawSample]:
-    """Every sample of a shard directory, shards in index order (a damaged shard raises ShardError)."""
-    return iter(RawSource(shard_dir))
+def iter_dir(shard_dir: Path | str) -> RawSource:
+    """Every sample of a shard directory, shards in index order (a damaged shard raises ShardError);
+    an iterable that also carries `shard_dir` (exporters that need the index's splits read it)."""
+    return RawSource(shard_dir)
 
 
 def exporter(fmt: str) -> Callable:
