@@ -34,10 +34,10 @@ $(STAMP): pyproject.toml
 	@touch $@
 
 # the tests also need the optional extras: Ray (scale-out), torch + transformers + onnxruntime (depth models),
-# trl (the reward adapters run inside a real GRPOTrainer)
+# trl (the reward adapters run inside a real GRPOTrainer), HF datasets + pyarrow (Parquet export)
 $(TEST_STAMP): $(STAMP)
-	@echo "installing test extras (pytest, hypothesis, ray, torch CPU, transformers, onnxruntime, trl, coacd)"
-	@$(BIN)/python -m pip install -q -e '.[test,ray,depth,dev,rl,assets]'
+	@echo "installing test extras (pytest, hypothesis, ray, torch CPU, transformers, onnxruntime, trl, coacd, datasets)"
+	@$(BIN)/python -m pip install -q -e '.[test,ray,depth,dev,rl,assets,datasets]'
 	@rm -f $(VENV)/.installed-test-*
 	@touch $@
 
