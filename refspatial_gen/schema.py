@@ -6,6 +6,7 @@ Every part of the project that reads a recipe section (sources, qa, shards) decl
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -39,6 +40,12 @@ def _type_ok(value: Any, t) -> bool:
     return False
 
 
+def short(value: Any, limit: int = 60) -> str:
+    """repr() cut to `limit` characters: an error message quotes a value, never pages of it."""
+    r = repr(value)
+    return r if len(r) <= limit else r[: limit - 3] + "..."
+
+
 def _type_name(t) -> str:
     ts = t if isinstance(t, tuple) else (t,)
     return " or ".join(_TYPE_NAMES.get(x, x.__name__) for x in ts)
@@ -58,7 +65,7 @@ def check_section(data: Any, fields: dict[str, Field], file: str, lines: dict[tu
     for key in data:
         if key not in fields:
             known = ", ".join(sorted(fields))
-            errors.append(RecipeError(file, line_of(lines, path + (key,)), f"unknown key {key!r} in {where} (known: {known})"))
+            errors.append(RecipeError(file, line_of(lines, path + (key,)), f"unknown key {short(key)} in {where} (known: {known})"))
     for key, f in fields.items():
         if key not in data or data[key] is None:
             if f.required:
@@ -68,19 +75,26 @@ def check_section(data: Any, fields: dict[str, Field], file: str, lines: dict[tu
         v = data[key]
         ln = line_of(lines, path + (key,))
         if not _type_ok(v, f.type):
-            errors.append(RecipeError(file, ln, f"{prefix}{key} must be {_type_name(f.type)}, got {type(v).__name__} {v!r}"))
+            errors.append(RecipeError(file, ln, f"{prefix}{key} must be {_type_name(f.type)}, got {type(v).__name__} {short(v)}"))
             out[key] = f.default
             continue
         if isinstance(v, int) and not isinstance(v, bool) and f.type is float:
             v = float(v)
+        if isinstance(v, float) and not math.isfinite(v):
+            errors.append(RecipeError(file, ln, f"{prefix}{key} must be a finite number, got {v}"))
+            out[key] = f.default
+            continue
         if f.choices is not None and v not in f.choices:
-            errors.append(RecipeError(file, ln, f"{prefix}{key} must be one of {', '.join(map(str, f.choices))}, got {v!r}"))
+            errors.append(RecipeError(file, ln, f"{prefix}{key} must be one of {', '.join(map(str, f.choices))}, got {short(v)}"))
         if f.min is not None and isinstance(v, (int, float)) and v < f.min:
             errors.append(RecipeError(file, ln, f"{prefix}{key} must be >= {f.min}, got {v}"))
         if f.max is not None and isinstance(v, (int, float)) and v > f.max:
             errors.append(RecipeError(file, ln, f"{prefix}{key} must be <= {f.max}, got {v}"))
         if f.check is not None:
-            msg = f.check(v)
+            try:
+                msg = f.check(v)
+            except (TypeError, ValueError, KeyError, AttributeError) as e:  # a check meeting a shape it never expected
+                msg = f"invalid value ({type(e).__name__})"
             if msg:
                 errors.append(RecipeError(file, ln, f"{prefix}{key}: {msg}"))
         out[key] = v
