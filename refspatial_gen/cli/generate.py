@@ -55,6 +55,16 @@ def _out_dir(args, recipe) -> Path:
     return out
 
 
+def _resolve(path: str, flag: str) -> str:
+    """An absolute path for a command-line folder; a symlink loop is an error, not a traceback."""
+    from refspatial_gen.core.errors import InputError
+
+    try:
+        return str(Path(path).resolve())
+    except (OSError, RuntimeError) as e:
+        raise InputError(path, f"{flag}: cannot be resolved ({type(e).__name__}: {e})") from None
+
+
 def _check_args(args) -> None:
     from refspatial_gen.core.errors import RecipeErrors
     from refspatial_gen.recipe import OverrideError
@@ -75,8 +85,8 @@ def cmd_shards(args) -> int:
     from refspatial_gen.run.executor import RecipeRef, run_plan
 
     _check_args(args)
-    inp = None if args.input is None else str(Path(args.input).resolve())
-    allow = tuple(str(Path(a).resolve()) for a in args.allow_root)
+    inp = None if args.input is None else _resolve(args.input, "--input")
+    allow = tuple(_resolve(a, "--allow-root") for a in args.allow_root)
     recipe = load_recipe(args.recipe, seed=args.seed, scenes=args.scenes, input_path=inp, allow_roots=allow)
     out = _out_dir(args, recipe)
     ref = RecipeRef(str(Path(args.recipe).resolve()), args.seed, args.scenes, inp, allow)

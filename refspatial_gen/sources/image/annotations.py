@@ -95,7 +95,8 @@ def _is_panoptic(d: Any) -> bool:
 
 
 def _is_coco(d: Any) -> bool:
-    return isinstance(d, dict) and all(k in d for k in ("images", "annotations", "categories")) and not _is_panoptic(d)
+    """A COCO instances file (its lists are checked by the reader, which names what is wrong)."""
+    return isinstance(d, dict) and "images" in d and "annotations" in d and not _is_panoptic(d)
 
 
 def _csv_head(p: Path) -> str:
@@ -122,7 +123,7 @@ def detect_format(root: Path) -> str:
         d = _peek_json(p)
         if _is_panoptic(d):
             return "coco_panoptic"
-        if _is_coco(d) and _first_entry(d) is not None:
+        if _is_coco(d):
             found = "coco"
     if found:
         return found
@@ -473,7 +474,10 @@ def read_panoptic_ids(path: Path, width: int, height: int, image_id: str) -> np.
     from refspatial_gen.core.serialize import decode_image
 
     try:
-        img = decode_image(Path(path).read_bytes())  # a label map: never turned by an EXIF tag
+        blob = Path(path).read_bytes()
+        if not blob:
+            raise ValueError("empty file")
+        img = decode_image(blob)  # a label map: never turned by an EXIF tag
     except (OSError, ValueError) as e:
         raise DropUnit("annotation_unreadable", f"image {image_id}: panoptic PNG {path} could not be decoded") from e
     if img.shape[:2] != (height, width):

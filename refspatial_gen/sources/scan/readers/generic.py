@@ -52,9 +52,9 @@ def _K(d: Any) -> tuple[np.ndarray, int, int]:
 
 def _frame_id(f: Any, k: int) -> str:
     if isinstance(f, dict) and isinstance(f.get("id"), (str, int)) and not isinstance(f.get("id"), bool) \
-            and str(f["id"]) and not str(f["id"]).startswith("#"):
+            and str(f["id"]) and not str(f["id"]).startswith("!") and "#" not in str(f["id"]):
         return str(f["id"])
-    return f"#frames[{k}]"
+    return f"!frame{k}"
 
 
 def _meta(root: Path) -> tuple[dict, list]:
@@ -94,7 +94,7 @@ class GenericReader:
         matches = [f for k, f in enumerate(frames) if _frame_id(f, k) == view_id]
         if not matches:
             raise DropUnit("frame_missing", f"{root}: no frame {view_id}")
-        if view_id.startswith("#") or len(matches) > 1:
+        if view_id.startswith("!") or len(matches) > 1:
             raise DropUnit("annotation_invalid", f"scan.json {view_id}: "
                                                  f"{'listed twice' if len(matches) > 1 else 'no usable id'}")
         f = matches[0]

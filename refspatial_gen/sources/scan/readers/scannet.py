@@ -39,10 +39,11 @@ def _meta_cached(root: str, stamp: tuple | None) -> tuple[dict, list]:
 
 
 def _view_id(f: Any, k: int) -> str:
-    """A frame's view id: its image's stem; a malformed entry gets `#frames[k]` (dropped when read)."""
-    if isinstance(f, dict) and isinstance(f.get("image"), str) and Path(f["image"]).stem:
+    """A frame's view id: its image's stem; a malformed entry gets `!frame<k>` (dropped when read)."""
+    if isinstance(f, dict) and isinstance(f.get("image"), str) and Path(f["image"]).stem \
+            and "#" not in f["image"] and not Path(f["image"]).stem.startswith("!"):
         return Path(f["image"]).stem
-    return f"#frames[{k}]"
+    return f"!frame{k}"
 
 
 @lru_cache(maxsize=4)
@@ -97,7 +98,7 @@ class ScanNetReader:
         matches = [f for k, f in enumerate(frames) if _view_id(f, k) == view_id]
         if not matches:
             raise DropUnit("frame_missing", f"{root}: no frame {view_id}")
-        if view_id.startswith("#") or len(matches) > 1:
+        if view_id.startswith("!") or len(matches) > 1:
             raise DropUnit("annotation_invalid", f"{root.name}/scene.json {view_id}: "
                                                  f"{'listed twice' if len(matches) > 1 else 'no image file name'}")
         f = matches[0]

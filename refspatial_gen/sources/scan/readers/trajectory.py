@@ -110,7 +110,10 @@ def _tum_poses(path: Path) -> list[tuple[float, list[str]]] | DropUnit:
 
 def _camera_json(path: Path) -> dict[str, Any]:
     """An Open3D PinholeCameraIntrinsic json (column-major K) -> intrinsics dict; DropUnit if malformed."""
-    c = V.mapping(read_json(path), path.name, "intrinsics_invalid")
+    try:
+        c = V.mapping(read_json(path), path.name, "intrinsics_invalid")
+    except DropUnit as e:
+        raise DropUnit("intrinsics_invalid", e.detail) from None
     K = V.matrix(c.get("intrinsic_matrix"), ((3, 3),), f"{path.name} intrinsic_matrix", "intrinsics_invalid").T
     return {"width": V.positive_int(c.get("width"), f"{path.name} width", "intrinsics_invalid"),
             "height": V.positive_int(c.get("height"), f"{path.name} height", "intrinsics_invalid"),
