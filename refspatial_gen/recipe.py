@@ -15,7 +15,7 @@ from typing import Any
 from refspatial_gen.core.errors import RecipeError, RecipeErrors
 from refspatial_gen.core.serialize import dumps
 from refspatial_gen.recipe_paths import Confinement, check_name, check_source_config, check_templates
-from refspatial_gen.schema import Field, check_section
+from refspatial_gen.schema import Field, check_section, non_finite
 from refspatial_gen.sources import get_source, source_names
 from refspatial_gen.yamlpos import line_of, load_yaml
 
@@ -169,6 +169,9 @@ def load_recipe(path: str | Path, *, seed: int | None = None, scenes: int | None
         raise RecipeError(file, 1, "empty recipe")
     errors: list[RecipeError] = []
     top = check_section(data, TOP_FIELDS, file, lines, (), errors)
+    nan_errors: list[RecipeError] = []
+    non_finite(data, file, lines, nan_errors)
+    errors += [e for e in nan_errors if str(e) not in {str(x) for x in errors}]  # free-form sections too
     conf = Confinement(file, lines, errors, allow_roots)
     specs = _sources(top, file, lines, input_path, conf, errors)
     _check_mix(top, specs, file, lines, errors)

@@ -29,6 +29,8 @@ class Field:
 
 
 def _type_ok(value: Any, t) -> bool:
+    if isinstance(value, float) and not math.isfinite(value):
+        return False  # NaN and infinity are never a valid setting (they pass every range check)
     ts = t if isinstance(t, tuple) else (t,)
     for ty in ts:
         if ty is float and isinstance(value, (int, float)) and not isinstance(value, bool):
@@ -74,16 +76,16 @@ def check_section(data: Any, fields: dict[str, Field], file: str, lines: dict[tu
             continue
         v = data[key]
         ln = line_of(lines, path + (key,))
+        if isinstance(v, float) and not math.isfinite(v):
+            errors.append(RecipeError(file, ln, f"{prefix}{key} must be a finite number, got {v}"))
+            out[key] = f.default
+            continue
         if not _type_ok(v, f.type):
             errors.append(RecipeError(file, ln, f"{prefix}{key} must be {_type_name(f.type)}, got {type(v).__name__} {short(v)}"))
             out[key] = f.default
             continue
         if isinstance(v, int) and not isinstance(v, bool) and f.type is float:
             v = float(v)
-        if isinstance(v, float) and not math.isfinite(v):
-            errors.append(RecipeError(file, ln, f"{prefix}{key} must be a finite number, got {v}"))
-            out[key] = f.default
-            continue
         if f.choices is not None and v not in f.choices:
             errors.append(RecipeError(file, ln, f"{prefix}{key} must be one of {', '.join(map(str, f.choices))}, got {short(v)}"))
         if f.min is not None and isinstance(v, (int, float)) and v < f.min:
@@ -99,3 +101,16 @@ def check_section(data: Any, fields: dict[str, Field], file: str, lines: dict[tu
                 errors.append(RecipeError(file, ln, f"{prefix}{key}: {msg}"))
         out[key] = v
     return out
+
+
+def non_finite(data: Any, file: str, lines: dict[tuple, int], errors: list[RecipeError], path: tuple = ()) -> None:
+    """NaN or infinity anywhere in a document (inside free-form mappings too: weights, options) is an error."""
+    if isinstance(data, float) and not math.isfinite(data):
+        where = ".".join(str(p) for p in path) or "value"
+        errors.append(RecipeError(file, line_of(lines, path), f"{where} must be a finite number, got {data}"))
+    elif isinstance(data, dict):
+        for k, v in data.items():
+            non_finite(v, file, lines, errors, path + (k,))
+    elif isinstance(data, list):
+        for i, v in enumerate(data):
+            non_finite(v, file, lines, errors, path + (i,))

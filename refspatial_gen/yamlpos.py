@@ -122,8 +122,9 @@ def load_yaml(path: str | Path, text: str | None = None) -> tuple[Any, dict[tupl
     except yaml.MarkedYAMLError as e:
         mark = e.problem_mark or e.context_mark
         raise RecipeError(file, mark.line + 1 if mark else None, f"YAML syntax: {e.problem or e.context}") from None
-    except yaml.YAMLError as e:
-        raise RecipeError(file, None, f"YAML: {type(e).__name__}") from None
+    except yaml.YAMLError as e:  # ReaderError: a control character; its message names only the character
+        first = (str(e).splitlines() or [type(e).__name__])[0]
+        raise RecipeError(file, None, f"YAML: {first[:120]}") from None
     except RecursionError:
         raise RecipeError(file, None, "YAML: nested too deeply") from None
     if node is None:

@@ -40,7 +40,7 @@ class Case:
     group: str
     name: str
     setup: Callable[[Path], tuple[list[str], Path | None]]  # tmp -> (argv, out folder to inspect)
-    expect: str  # "error" | "drop" | "ok"
+    expect: str  # "error" | "lint-error" | "drop" | "ok"
     reasons: tuple[str, ...] = ()  # for "drop": any of these must be counted
     cwd: bool = False  # run with the temporary folder as working directory
 
@@ -128,12 +128,22 @@ def classify(case: Case, tmp: Path, limit_s: int = 120) -> Outcome:
         return Outcome(case, False, "TRACEBACK: " + _short(err.strip().splitlines()[-1], tmp), secs)
     if any(m in text for m in LEAK_MARKERS):
         return Outcome(case, False, "LEAK: output quotes a protected file", secs)
+    if (tmp / "PWNED").exists():
+        return Outcome(case, False, "EXECUTED: a YAML tag ran a command", secs)
+    if case.expect == "lint-error":
+        lines = [ln for ln in out.strip().splitlines() if ln.strip()]
+        good = rc == 1 and lines and all(_LINE.match(ln) for ln in lines) and not out.startswith("ok:")
+        first = _short(lines[0], tmp) if lines else ""
+        more = f" (+{len(lines) - 1} more)" if len(lines) > 1 else ""
+        return Outcome(case, bool(good), f"error `{first}`{more}" if good else f"NOT REFUSED (exit {rc}) {first}", secs)
     st = _stats(out_dir)
     dropped = st.get("dropped", {})
     if any(k.startswith("internal_error") for k in dropped):
         return Outcome(case, False, f"INTERNAL DROP {dropped}", secs)
     if case.expect == "error":
         lines = [ln for ln in err.strip().splitlines() if ln.strip()]
+        if lines and lines[0].startswith("usage:") and ": error: " in lines[-1]:  # argparse's own refusal
+            lines = lines[-1:]
         good = rc == 2 and lines and all(_LINE.match(ln) for ln in lines)
         first = _short(lines[0], tmp) if lines else ""
         return Outcome(case, bool(good), f"error `{first}`" if good else f"NOT REFUSED (exit {rc}) {first}", secs)
