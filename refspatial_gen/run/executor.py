@@ -43,7 +43,8 @@ _units_done = 0
 
 def _fault(point: str, uid: str = "") -> None:
     """Crash-test hook: kill the process with SIGKILL at a named point when REFSPATIAL_FAULT asks for it
-    ("unit:N" after the N-th unit, "index" while writing the index, "crash:<uid>" when starting that unit)."""
+    ("unit:N" after the N-th unit, "index" while writing the index, "crash:<uid>" when starting that unit;
+    "slow:SECONDS" only sleeps that long after every unit)."""
     global _units_done
     spec = os.environ.get(FAULT_ENV)
     if not spec:
@@ -53,6 +54,9 @@ def _fault(point: str, uid: str = "") -> None:
             os.kill(os.getpid(), signal.SIGKILL)
         return
     if point == "unit":
+        if spec.startswith("slow:"):  # a slow run, for tests of what happens while a run is in progress
+            time.sleep(float(spec[5:]))
+            return
         _units_done += 1
         if spec == f"unit:{_units_done}":
             os.kill(os.getpid(), signal.SIGKILL)
@@ -153,8 +157,11 @@ def run_group(task: GroupTask) -> dict[str, Any]:
     record_path = out / PARTS / f"shard-{task.group_index:05d}.json"
     try:
         infos = [_info_dict(i) for i in writer.finish()]
-        timer.add("write", t)
-        record = {"group": task.group_index, "units": [u[0] for u in task.units], "shards": infos, "stats": stats}
+    except OSError as e:
+        raise _write_error(e, base) from None
+    timer.add("write", t)
+    record = {"group": task.group_index, "units": [u[0] for u in task.units], "shards": infos, "stats": stats}
+    try:
         atomic_write_bytes(record_path, dumps(record))
         marker_path(out, task.group_index).unlink(missing_ok=True)
     except OSError as e:
