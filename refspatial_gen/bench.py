@@ -131,10 +131,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scenes", type=int, default=24, help="scenes for the simulated pipeline")
     ap.add_argument("--scale-scenes", type=int, default=96, help="scenes for the 1 vs 2 worker scaling run")
     ap.add_argument("--mem-scenes", type=int, default=16, help="scenes for the memory run (and 10x as many)")
-    ap.add_argument("--only", nargs="*", default=None, choices=["sim", "qa", "image", "stream", "scale"])
+    ap.add_argument("--only", nargs="*", default=None, choices=["sim", "qa", "image", "stream", "scale", "manifest"])
     ap.add_argument("--json", default=None, help="also write the figures to this file")
     args = ap.parse_args(argv)
-    sections = args.only or ["sim", "qa", "image", "stream", "scale"]
+    sections = args.only or ["sim", "qa", "image", "stream", "scale", "manifest"]
     figures: dict[str, Any] = {"machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.python_version()}"}
     work = Path(tempfile.mkdtemp(prefix="refspatial-bench-"))
     try:
@@ -154,6 +154,10 @@ def main(argv: list[str] | None = None) -> int:
                 figures["stream"] = bench_stream(shard_dir, work)
             elif name == "scale":
                 figures["scale"] = bench_scaling(args.scale_scenes, args.mem_scenes, work)
+            elif name == "manifest":  # input content hashing for the resume fingerprint (run/manifest.py)
+                from refspatial_gen.run.manifest import bench_manifest
+
+                figures["manifest"] = bench_manifest(work)
             print(f"== {name} ({time.perf_counter() - t0:.1f} s)\n{json.dumps(figures[name], indent=2)}", flush=True)
     finally:
         shutil.rmtree(work, ignore_errors=True)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import struct
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
@@ -92,7 +93,8 @@ def source_keys(s: SourceSpec, n: int) -> list[str]:
         raise
     except DropUnit as e:
         raise InputError(where, f"{e.reason}: {e.detail}" if e.detail else e.reason) from None
-    except (ValueError, OSError, KeyError, TypeError, IndexError, AttributeError) as e:
+    except (ValueError, OSError, KeyError, TypeError, IndexError, AttributeError, RuntimeError, EOFError,
+            struct.error) as e:  # RuntimeError: what native parsers (pycolmap, USD) raise on a broken file
         msg = f"{e.strerror}: {e.filename}" if isinstance(e, OSError) and e.strerror else f"{e}"
         raise InputError(where, f"cannot list {s.kind} units: {msg or type(e).__name__}") from None
     if not keys:
