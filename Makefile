@@ -13,7 +13,7 @@ PYTEST_ARGS ?=
 export MUJOCO_GL ?= egl
 export PYOPENGL_PLATFORM ?= egl
 
-.PHONY: setup setup-test shards test test-slow test-all bench preview lint clean
+.PHONY: setup setup-test shards test test-slow test-all bench preview lint clean audit assets-shared assets-textured
 
 $(STAMP): pyproject.toml
 	@bash scripts/ensure-system-libs.sh
@@ -24,10 +24,11 @@ $(STAMP): pyproject.toml
 	@rm -f $(VENV)/.installed-[0-9a-f]*
 	@touch $@
 
-# the tests also need the optional extras: Ray (scale-out), torch + transformers + onnxruntime (depth models)
+# the tests also need the optional extras: Ray (scale-out), torch + transformers + onnxruntime (depth models),
+# trl (the reward adapters run inside a real GRPOTrainer)
 $(TEST_STAMP): $(STAMP)
-	@echo "installing test extras (pytest, hypothesis, ray, torch CPU, transformers, onnxruntime)"
-	@$(BIN)/python -m pip install -q -e '.[test,ray,depth,dev]'
+	@echo "installing test extras (pytest, hypothesis, ray, torch CPU, transformers, onnxruntime, trl, coacd)"
+	@$(BIN)/python -m pip install -q -e '.[test,ray,depth,dev,rl,assets]'
 	@rm -f $(VENV)/.installed-test-*
 	@touch $@
 
@@ -52,8 +53,51 @@ bench: setup-test
 preview: setup
 	$(BIN)/refspatial-gen preview $(OUT) --out out/preview
 
+# The audit sample of docs/quality.md, reproducible from this one command: five datasets (default sim, sim with
+# the external YCB meshes, SUN RGB-D and ScanNet scans, COCO photos), then a stratified sample of AUDIT_N pairs.
+SHARED ?= $(or $(REFSPATIAL_SHARED_DATA),../shared/data)
+AUDIT_DATA ?= out/audit-data
+AUDIT_OUT ?= out/audit
+AUDIT_N ?= 150
+AUDIT_RUN = $(BIN)/refspatial-gen shards --quiet --workers $(WORKERS)
+audit: setup assets-shared
+	$(AUDIT_RUN) --recipe recipes/default.yaml --scenes 24 --out $(AUDIT_DATA)/sim
+	$(AUDIT_RUN) --recipe recipes/sim_ycb.yaml --scenes 24 --out $(AUDIT_DATA)/ycb
+	$(AUDIT_RUN) --recipe recipes/scan.yaml --input $(SHARED)/sunrgbd --out $(AUDIT_DATA)/scan-sun
+	$(AUDIT_RUN) --recipe recipes/scan.yaml --input $(SHARED)/scannet_scene0000_00 --out $(AUDIT_DATA)/scan-scannet
+	$(AUDIT_RUN) --recipe recipes/image.yaml --input $(SHARED)/coco_tiny_train2017 --out $(AUDIT_DATA)/photos
+	$(BIN)/refspatial-gen audit sim=$(AUDIT_DATA)/sim ycb=$(AUDIT_DATA)/ycb scan=$(AUDIT_DATA)/scan-sun \
+	  scan=$(AUDIT_DATA)/scan-scannet photos=$(AUDIT_DATA)/photos --n $(AUDIT_N) --seed 0 --out $(AUDIT_OUT)
+
 lint: setup
 	$(BIN)/refspatial-gen recipes lint recipes/*.yaml recipes/templates/*.yaml
+
+# Asset catalogs (docs/sim.md). Imported catalogs go to out/assets/; downloads and convex decompositions to
+# the asset cache (REFSPATIAL_CACHE, default ~/.cache/refspatial-gen), never into the repository.
+ASSET_CACHE ?= $(or $(REFSPATIAL_CACHE),$(HOME)/.cache/refspatial-gen)
+ROBOSUITE := $(ASSET_CACHE)/libraries/robosuite-1.5.2
+
+ASSETS_STAMP := $(VENV)/.installed-assets-$(HASH)
+$(ASSETS_STAMP): $(STAMP)
+	@$(BIN)/python -m pip install -q -e '.[assets]'
+	@touch $@
+
+out/assets/ycb_sim.yaml out/assets/object_sim.yaml: out/assets/%.yaml: | $(ASSETS_STAMP)
+	$(BIN)/refspatial-gen assets import $(SHARED)/$* --out $@
+
+assets-shared: out/assets/ycb_sim.yaml out/assets/object_sim.yaml
+
+# robosuite's textured objects (MIT): the wheel is downloaded once at set-up, never at run time
+$(ROBOSUITE)/.stamp: | $(ASSETS_STAMP)
+	$(BIN)/python -m pip download -q --no-deps robosuite==1.5.2 -d $(ASSET_CACHE)/wheels
+	$(BIN)/python -m refspatial_gen.assets.library robosuite $(ASSET_CACHE)/wheels $(ROBOSUITE)
+	rm -f $(ASSET_CACHE)/wheels/robosuite-1.5.2-*.whl
+	touch $@
+
+out/assets/robosuite.yaml: $(ROBOSUITE)/.stamp
+	$(BIN)/refspatial-gen assets import $(ROBOSUITE)/objects/robosuite --out $@
+
+assets-textured: out/assets/robosuite.yaml
 
 clean:
 	rm -rf out

@@ -126,15 +126,39 @@ def bench_scaling(scenes: int, mem_scenes: int, work: Path) -> dict[str, Any]:
     return out
 
 
+def bench_eval(scenes: int, work: Path) -> dict[str, Any]:
+    """`refspatial-gen eval` on `scenes` default-recipe scenes: loading the ground truth (masks, free-space
+    regions) and scoring gold predictions with every reward, in QA pairs per second."""
+    from refspatial_gen.eval.baselines import predict
+    from refspatial_gen.eval.dataset import load_items
+    from refspatial_gen.eval.predictions import parse_predictions
+    from refspatial_gen.eval.score import evaluate
+    from refspatial_gen.recipe import load_recipe
+    from refspatial_gen.run.executor import RecipeRef, run_plan
+
+    d = work / "eval"
+    run_plan(load_recipe(DEFAULT_RECIPE, scenes=scenes), RecipeRef(str(DEFAULT_RECIPE), None, scenes, None), d,
+             workers=1, progress=False, fresh=True)
+    t0 = time.perf_counter()
+    items = load_items(d)
+    t1 = time.perf_counter()
+    preds = parse_predictions([json.dumps({"id": i, "text": t}) for i, t in predict("gold", items).items()], [it.id for it in items])
+    recs = evaluate(items, preds)
+    t2 = time.perf_counter()
+    return {"qa_pairs": len(items), "load_gold_qa_per_s": round(len(items) / (t1 - t0), 1),
+            "score_qa_per_s": round(len(items) / (t2 - t1), 1), "gold_success": sum(r["success"] for r in recs) / len(recs)}
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m refspatial_gen.bench", description=__doc__)
     ap.add_argument("--scenes", type=int, default=24, help="scenes for the simulated pipeline")
     ap.add_argument("--scale-scenes", type=int, default=96, help="scenes for the 1 vs 2 worker scaling run")
     ap.add_argument("--mem-scenes", type=int, default=16, help="scenes for the memory run (and 10x as many)")
-    ap.add_argument("--only", nargs="*", default=None, choices=["sim", "qa", "image", "stream", "scale", "manifest"])
+    ap.add_argument("--only", nargs="*", default=None,
+                    choices=["sim", "qa", "image", "stream", "scale", "eval", "manifest"])
     ap.add_argument("--json", default=None, help="also write the figures to this file")
     args = ap.parse_args(argv)
-    sections = args.only or ["sim", "qa", "image", "stream", "scale", "manifest"]
+    sections = args.only or ["sim", "qa", "image", "stream", "scale", "eval", "manifest"]
     figures: dict[str, Any] = {"machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.python_version()}"}
     work = Path(tempfile.mkdtemp(prefix="refspatial-bench-"))
     try:
@@ -154,6 +178,8 @@ def main(argv: list[str] | None = None) -> int:
                 figures["stream"] = bench_stream(shard_dir, work)
             elif name == "scale":
                 figures["scale"] = bench_scaling(args.scale_scenes, args.mem_scenes, work)
+            elif name == "eval":
+                figures["eval"] = bench_eval(args.scenes, work)
             elif name == "manifest":  # input content hashing for the resume fingerprint (run/manifest.py)
                 from refspatial_gen.run.manifest import bench_manifest
 

@@ -33,6 +33,7 @@ TOP_FIELDS: dict[str, Field] = {
     "graph": Field(dict, default=None),
     "qa": Field(dict, default=None),
     "shards": Field(dict, default=None),
+    "splits": Field(dict, default=None, doc="train/val/test fractions and the unseen split (run/splits.py)"),
 }
 
 SOURCE_FIELDS: dict[str, Field] = {
@@ -73,17 +74,28 @@ class Recipe:
     shards: dict[str, Any]
     hash: str  # sha256 over the recipe text and every file it depends on (templates)
     raw: dict[str, Any] = field(default_factory=dict)
+    splits: dict[str, Any] = field(default_factory=dict)  # run/splits.py config, recorded in index.json
 
 
-def _source_config(kind: str, data: Any, file: str, lines: dict, path: tuple, errors: list[RecipeError]) -> dict:
+def _source_config(kind: str, data: Any, file: str, lines: dict, path: tuple, errors: list[RecipeError],
+                   conf: Confinement, inp: str | None) -> dict:
+    """The source's validated config; its paths are confined before the source's own hook may open them."""
     src = get_source(kind)
     fields = getattr(src, "CONFIG_FIELDS", None)
     if fields is None:
         if data is not None and not isinstance(data, dict):
             errors.append(RecipeError(file, line_of(lines, path), "config must be a mapping"))
             return {}
-        return dict(data or {})
-    return check_section(data, fields, file, lines, path, errors)
+        cfg = dict(data or {})
+        check_source_config(kind, cfg, path[1], inp, conf)
+        return cfg
+    n = len(errors)
+    cfg = check_section(data, fields, file, lines, path, errors)
+    check_source_config(kind, cfg, path[1], inp, conf)
+    hook = getattr(src, "check_config", None)  # source checks that need the recipe's folder (paths) or files
+    if hook is not None and len(errors) == n:
+        hook(cfg, file, lines, path, errors)
+    return cfg
 
 
 class OverrideError(RecipeError):
@@ -118,17 +130,16 @@ def _sources(top: dict, file: str, lines: dict, input_path: str | None, conf: Co
             errors.append(RecipeError(file, line_of(lines, ("sources", i, "kind")),
                                       f"unknown source kind {kind!r} (known: {', '.join(source_names())})"))
             continue
-        cfg = _source_config(kind, sp["config"], file, lines, ("sources", i, "config"), errors)
         inp = input_path
         if inp is None and sp["input"] is not None:
             resolved = conf.check(sp["input"], conf.recipe_dir, ("sources", i, "input"), f"sources.{i}.input")
             inp = None if resolved is None else str(resolved)
         if inp is not None:
             conf.allow(inp)
+        cfg = _source_config(kind, sp["config"], file, lines, ("sources", i, "config"), errors, conf, inp)
+        if inp is not None:
             cfg["_input"] = inp  # sources resolve their (relative) unit keys against it in load()
         specs.append(SourceSpec(i, kind, sp["weight"], sp["scenes"], inp, cfg))
-    for sp in specs:
-        check_source_config(sp.kind, sp.config, sp.index, sp.input, conf)
     return specs
 
 
@@ -177,6 +188,7 @@ def load_recipe(path: str | Path, *, seed: int | None = None, scenes: int | None
     _check_mix(top, specs, file, lines, errors)
     shards = check_section(top["shards"], SHARD_FIELDS, file, lines, ("shards",), errors)
     check_templates(top["qa"], conf)
+    splits = importlib.import_module("refspatial_gen.run.splits").check_splits(top["splits"], file, lines, errors)
     graph_cfg = dict(top["graph"] or {})
     qa_cfg, deps = _qa(top, file, lines, errors) if not errors else (None, [])
     if errors:
@@ -187,7 +199,7 @@ def load_recipe(path: str | Path, *, seed: int | None = None, scenes: int | None
     return Recipe(
         path=file, name=top["name"] or Path(file).stem, seed=top["seed"] if seed is None else seed,
         scenes=top["scenes"] if scenes is None else scenes, sources=specs, graph=graph_cfg, qa=qa_cfg,
-        shards=shards, hash=h.hexdigest(), raw=data,
+        shards=shards, hash=h.hexdigest(), raw=data, splits=splits,
     )
 
 

@@ -8,9 +8,9 @@ error) `/etc/shadow`, or write outside the output root. Allowed roots for what a
   * the project's shipped `recipes/` and `assets/` folders,
   * folders the user allows explicitly: `--allow-root DIR` or REFSPATIAL_ALLOWED_ROOTS (os.pathsep list).
 
-Paths are resolved the way the code that opens them resolves them (templates and `input:` against the
-recipe's folder, image `annotations`/`images_dir` against the input folder, model and catalog paths
-against the working directory), symlinks followed, then checked. A path outside is a RecipeError that
+Paths are resolved the way the code that opens them resolves them (templates, `input:` and the sim
+`catalog` against the recipe's folder, image `annotations`/`images_dir` against the input folder, model
+paths against the working directory), symlinks followed, then checked. A path outside is a RecipeError that
 quotes the key and the value written in the recipe, never the file's contents (the file is not opened).
 The dataset `name` becomes a folder under the output root, so it must be a plain folder name.
 """
@@ -38,8 +38,9 @@ CONFIG_PATHS: dict[tuple[str, tuple[str, ...]], str] = {
     ("image", ("depth", "model_path")): "cwd",
     ("scan", ("input",)): "cwd",
     ("scan", ("boxes_file",)): "cwd",
-    ("sim", ("catalog",)): "cwd",
+    ("sim", ("catalog",)): "recipe",  # a path or a list of paths; "builtin" is the shipped catalog
 }
+_BUILTIN = ("builtin", "")
 _PATHLIKE_SUFFIXES = ("_file", "_dir", "_path", "_folder")
 
 
@@ -143,6 +144,11 @@ def check_source_config(kind: str, config: Any, index: int, input_root: str | No
                 continue  # no input folder: planning stops with its own error
             root = Path(input_root)
         else:
-            root = Path.cwd()
+            root = conf.recipe_dir if base == "recipe" else Path.cwd()
         where = ("sources", index, "config", *key)
-        conf.check(value, root, where, _dotted(where))
+        values = value if isinstance(value, list) else [value]
+        for j, v in enumerate(values):
+            if v in _BUILTIN:
+                continue
+            w = where + (j,) if isinstance(value, list) else where
+            conf.check(v, root, w, _dotted(w))

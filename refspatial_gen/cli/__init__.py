@@ -29,7 +29,10 @@ COMMAND_MODULES = [
     "refspatial_gen.cli.data",
     "refspatial_gen.cli.relations",
     "refspatial_gen.cli.sim",
+    "refspatial_gen.cli.assets",
     "refspatial_gen.cli.verify",
+    "refspatial_gen.cli.eval",
+    "refspatial_gen.cli.audit",
 ]
 DEBUG_ENV = "REFSPATIAL_DEBUG"
 

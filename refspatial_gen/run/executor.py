@@ -280,11 +280,12 @@ def _run_locked(recipe: Recipe, ref: RecipeRef, out_dir: Path, units: list[Unit]
             raise _interrupted("terminated", 143, out_dir, len(records), len(groups)) from None
         raise
     bar.close()
-    return _finish(out_dir, groups, records, results, fingerprint, workers, executor, t_start)
+    return _finish(recipe, out_dir, groups, records, results, fingerprint, workers, executor, t_start)
 
 
-def _finish(out_dir: Path, groups: list[Group], records: dict[int, dict[str, Any]], results: list[dict[str, Any]],
-            fingerprint: dict[str, Any], workers: int, executor: str, t_start: float) -> dict[str, Any]:
+def _finish(recipe: Recipe, out_dir: Path, groups: list[Group], records: dict[int, dict[str, Any]],
+            results: list[dict[str, Any]], fingerprint: dict[str, Any], workers: int, executor: str,
+            t_start: float) -> dict[str, Any]:
     """Merge the group records, remove stray shard files, write index.json (last) and the run log."""
     from refspatial_gen.shards.index import write_index
 
@@ -298,8 +299,10 @@ def _finish(out_dir: Path, groups: list[Group], records: dict[int, dict[str, Any
     if os.environ.get(FAULT_ENV) == "index":  # simulate dying half-way through writing the index
         (out_dir / "index.json.partial").write_bytes(b'{"shards": [')
         _fault("index")
+    from refspatial_gen.run.splits import index_section
+
     try:
-        index = write_index(out_dir, shards, {**fingerprint, "stats": total})
+        index = write_index(out_dir, shards, {**fingerprint, "stats": total, **index_section(recipe, out_dir, shards)})
     except OSError as e:
         raise OutputIOError(str(e.filename or out_dir / "index.json"), e.strerror or str(e)) from None
     wall = time.time() - t_start
