@@ -341,3 +341,32 @@ def test_mutated_trajectory_files(shared_data, tmp_path_factory, data):
     cam = json.loads((src / "camera_primesense.json").read_text())
     (root / "camera_primesense.json").write_text(json.dumps(mutate(cam, data, rounds=1)))
     _read_all(TrajectoryReader(), root)
+
+
+@pytest.fixture(scope="module")
+def mcap_recording(tmp_path_factory):
+    from tests.test_scan_formats import _write_mcap
+    from refspatial_gen.sources.toy import toy_frame
+
+    p = tmp_path_factory.mktemp("mcap") / "rec.mcap"
+    _write_mcap(p, [toy_frame(np.random.default_rng(s), 3, 96, 72, frame_id=f"t{s}") for s in (1, 2)])
+    return p.read_bytes()
+
+
+@FAST
+@given(st.data())
+def test_damaged_mcap_recordings_drop_or_stop_planning(mcap_recording, tmp_path_factory, data):
+    from refspatial_gen.sources.scan.readers.mcap_reader import McapReader
+
+    raw = bytearray(mcap_recording)
+    if data.draw(st.booleans(), label="cut"):
+        del raw[data.draw(st.integers(0, len(raw) - 1), label="at"):]
+    else:
+        for _ in range(data.draw(st.integers(1, 6), label="n")):
+            raw[data.draw(st.integers(0, len(raw) - 1), label="i")] = data.draw(st.integers(0, 255), label="b")
+    root = tmp_path_factory.mktemp("rec")
+    (root / "rec.mcap").write_bytes(bytes(raw))
+    try:
+        _read_all(McapReader(), root)
+    except DropUnit:
+        pass  # the recording's index cannot be read: planning turns this into `path: message`

@@ -263,8 +263,9 @@ def _run_locked(recipe: Recipe, ref: RecipeRef, out_dir: Path, units: list[Unit]
                        strict, recipe_hash=recipe.hash) for g in groups if g.index not in records]
     results: list[dict[str, Any]] = []
     bar = _progress(len(units), sum(len(g.units) for g in groups if g.index in records), progress)
+    gen = _execute(tasks, workers, executor, ray_address, out_dir)
     try:
-        for res in _execute(tasks, workers, executor, ray_address, out_dir):
+        for res in gen:
             records[res["record"]["group"]] = res["record"]
             results.append(res)
             bar.update(len(res["record"]["units"]))
@@ -273,6 +274,7 @@ def _run_locked(recipe: Recipe, ref: RecipeRef, out_dir: Path, units: list[Unit]
                 on_group_done(res["record"]["group"])
     except BaseException as e:
         bar.close()
+        gen.close()  # stops the workers (the pool's own `finally`) before their files are discarded
         discard_groups(out_dir, [g.index for g in groups if g.index not in records])
         if isinstance(e, KeyboardInterrupt):
             raise _interrupted("interrupted", 130, out_dir, len(records), len(groups)) from None

@@ -20,7 +20,6 @@ from refspatial_gen.recipe import Recipe, recipe_fingerprint
 from refspatial_gen.run.manifest import input_manifest
 
 PARTS = "_parts"
-SHARD_RE = re.compile(r"^shard-(\d{5})[.-]")
 
 
 def run_fingerprint(recipe: Recipe, out_dir: Path) -> dict[str, Any]:
