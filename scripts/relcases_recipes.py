@@ -110,18 +110,18 @@ def _generated(path: Path) -> list[Case]:
         is_template = "templates" in p and isinstance(p[-1], int)
         if is_template:
             continue  # template paths get their own cases below
-        cases.append(lint_case("recipe", f"{stem}: {where} of the wrong type", _with(data, p, _set(_wrong_type(v)))))
+        cases.append(lint_case("mutation", f"{stem}: {where} of the wrong type", _with(data, p, _set(_wrong_type(v)))))
         if isinstance(v, (int, float)) and not isinstance(v, bool):
-            cases.append(lint_case("recipe", f"{stem}: {where} = .nan", _with(data, p, _set(math.nan))))
+            cases.append(lint_case("mutation", f"{stem}: {where} = .nan", _with(data, p, _set(math.nan))))
         if isinstance(v, dict) and not (p and p[-1] in FREE_FORM):
-            cases.append(lint_case("recipe", f"{stem}: unknown key in {where}",
+            cases.append(lint_case("mutation", f"{stem}: unknown key in {where}",
                                    _with(data, p + ("bogus_key",), _set(1))))
         if isinstance(p[-1], str) and not (len(p) > 1 and p[-2] in FREE_FORM):
-            cases.append(lint_case("recipe", f"{stem}: {where} misspelt", _with(data, p, _rename)))
+            cases.append(lint_case("mutation", f"{stem}: {where} misspelt", _with(data, p, _rename)))
         if tuple(p) in REQUIRED or (len(p) == 4 and p[:2] == ("qa", "families") and p[3] == "templates"):
-            cases.append(lint_case("recipe", f"{stem}: required {where} deleted", _with(data, p, lambda d, k: d.pop(k))))
+            cases.append(lint_case("mutation", f"{stem}: required {where} deleted", _with(data, p, lambda d, k: d.pop(k))))
     if isinstance(data, dict):
-        cases.append(lint_case("recipe", f"{stem}: unknown top-level key", {**data, "bogus_key": 1}))
+        cases.append(lint_case("mutation", f"{stem}: unknown top-level key", {**data, "bogus_key": 1}))
     return cases
 
 

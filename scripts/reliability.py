@@ -46,12 +46,16 @@ def run_all(data: Path, only: str | None, match: str | None, verbose: bool) -> l
     return results
 
 
+def _cell(text: str, limit: int = 90) -> str:
+    text = text.replace("|", "\\|").replace("\n", " ")
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 def table(results: list[Outcome]) -> str:
     rows = ["| # | group | case | expected | outcome |", "|---|---|---|---|---|"]
     for i, r in enumerate(results, 1):
-        summary = r.summary.replace("|", "\\|")
         mark = "" if r.ok else "**FAIL** "
-        rows.append(f"| {i} | {r.case.group} | {r.case.name.replace('|', '/')} | {r.case.expect} | {mark}{summary} |")
+        rows.append(f"| {i} | {r.case.group} | {_cell(r.case.name)} | {r.case.expect} | {mark}{_cell(r.summary, 160)} |")
     return "\n".join(rows)
 
 
@@ -60,9 +64,14 @@ def write_doc(results: list[Outcome]) -> None:
     head, rest = text.split(BEGIN, 1)
     _, tail = rest.split(END, 1)
     inputs = [r for r in results if r.case.group not in RECIPE_GROUPS]
-    recipes = [r for r in results if r.case.group in RECIPE_GROUPS]
-    body = (f"\n{summary_line(inputs, 'broken inputs')}\n\n{table(inputs)}\n\n"
-            f"{summary_line(recipes, 'recipe mutations')}\n\n{table(recipes)}\n")
+    hand = [r for r in results if r.case.group in RECIPE_GROUPS and r.case.group != "mutation"]
+    generated = [r for r in results if r.case.group == "mutation"]
+    body = (f"\n### Broken scene inputs\n\n{summary_line(inputs, 'broken inputs')}\n\n{table(inputs)}\n\n"
+            f"### Hostile and broken recipes\n\n{summary_line(hand + generated, 'recipe mutations')} "
+            f"Hand-written cases first; then every key of every shipped recipe given a wrong type, NaN, an unknown "
+            f"sibling, a misspelling, or deleted when required.\n\n{table(hand)}\n\n"
+            f"<details><summary>{len(generated)} generated mutations of the shipped recipes</summary>\n\n"
+            f"{table(generated)}\n\n</details>\n")
     DOC.write_text(head + BEGIN + body + END + tail)
 
 
@@ -75,7 +84,7 @@ def summary_line(results: list[Outcome], what: str) -> str:
             f"counted reason, {n_ok} accepted as valid, {bad} failed.")
 
 
-RECIPE_GROUPS = ("recipe", "yaml", "paths", "overrides", "template")
+RECIPE_GROUPS = ("recipe", "yaml", "paths", "overrides", "mutation")
 
 
 def main() -> int:
