@@ -13,7 +13,7 @@ PYTEST_ARGS ?=
 export MUJOCO_GL ?= egl
 export PYOPENGL_PLATFORM ?= egl
 
-.PHONY: setup setup-test shards test test-slow test-all bench preview lint clean audit assets-shared assets-textured
+.PHONY: setup setup-test shards test test-slow test-all bench preview lint clean audit assets-shared assets-textured reliability
 
 $(STAMP): pyproject.toml
 	@bash scripts/ensure-system-libs.sh
@@ -46,6 +46,10 @@ test-slow: setup-test
 
 test-all: setup-test
 	$(BIN)/python -m pytest -q $(PYTEST_ARGS)
+
+# every broken-input and hostile-recipe case, rerun; rewrites the tables in docs/reliability.md
+reliability: setup-test
+	$(BIN)/python scripts/reliability.py --write-doc
 
 bench: setup-test
 	$(BIN)/python -m refspatial_gen.bench
