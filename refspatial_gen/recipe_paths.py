@@ -5,7 +5,7 @@ error) `/etc/shadow`, or write outside the output root. Allowed roots for what a
 
   * the recipe's own folder,
   * the input folder (`--input`, or the recipe's `input:`, itself confined),
-  * the project's shipped `recipes/` and `assets/` folders,
+  * the project's shipped `recipes/` and `assets/` folders, and `out/assets/` (imported catalogs),
   * folders the user allows explicitly: `--allow-root DIR` or REFSPATIAL_ALLOWED_ROOTS (os.pathsep list).
 
 Paths are resolved the way the code that opens them resolves them (templates, `input:` and the sim
@@ -27,7 +27,8 @@ from refspatial_gen.yamlpos import line_of
 
 ALLOWED_ROOTS_ENV = "REFSPATIAL_ALLOWED_ROOTS"
 PROJECT = Path(__file__).resolve().parents[1]
-SHIPPED_ROOTS = (PROJECT / "recipes", PROJECT / "assets")
+# the project's shipped recipes and assets, and the catalogs `refspatial-gen assets import` writes (make assets-*)
+SHIPPED_ROOTS = (PROJECT / "recipes", PROJECT / "assets", PROJECT / "out" / "assets")
 NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,99}$")
 
 # (source kind, key path inside its config) -> what a relative value is resolved against

@@ -38,11 +38,22 @@ def _prepare(tmp: Path, data: Any, text: str | None = None) -> Path:
 
 
 def _baseline(path: Path) -> dict:
+    """The shipped recipe, made valid where it sits in a temporary folder: a model folder beside it, and its
+    sim catalogs by absolute path (the built-in catalog when `make assets-*` has not written them)."""
     data = yaml.safe_load(path.read_text())
     for s in data.get("sources", []):
-        depth = (s.get("config") or {}).get("depth") or {}
+        cfg = s.get("config") or {}
+        depth = cfg.get("depth") or {}
         if "model_dir" in depth:
             depth["model_dir"] = MODEL  # a folder that exists beside the recipe (cwd = the recipe's folder)
+        if cfg.get("catalog"):
+            cats = cfg["catalog"] if isinstance(cfg["catalog"], list) else [cfg["catalog"]]
+            full = [str((path.parent / c).resolve()) for c in cats]
+            if all(Path(c).is_file() for c in full):
+                cfg["catalog"] = full
+            else:
+                cfg.pop("catalog")
+                cfg.pop("external_prob", None)
     return data
 
 
@@ -103,7 +114,8 @@ def _wrong_type(v: Any) -> Any:
 def _generated(path: Path) -> list[Case]:
     data = _baseline(path)
     stem = path.stem
-    cases = []
+    base = lint_case("mutation", f"{stem}: unchanged (the baseline every mutation starts from)", data)
+    cases = [Case(base.group, base.name, base.setup, "lint-ok", cwd=True)]
     for p in _paths(data):
         v = _get(data, p)
         where = ".".join(map(str, p))

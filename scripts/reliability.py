@@ -78,7 +78,7 @@ def write_doc(results: list[Outcome]) -> None:
 def summary_line(results: list[Outcome], what: str) -> str:
     n_err = sum(r.ok and r.summary.startswith("error") for r in results)
     n_drop = sum(r.ok and r.summary.startswith("drop") for r in results)
-    n_ok = sum(r.ok and r.summary.startswith("ok") for r in results)
+    n_ok = sum(r.ok and r.summary.startswith("ok") for r in results)  # valid variants and recipe baselines
     bad = sum(not r.ok for r in results)
     return (f"**{len(results)} {what}**: {n_err} refused with a `file:line` / `path:` error, {n_drop} dropped with a "
             f"counted reason, {n_ok} accepted as valid, {bad} failed.")

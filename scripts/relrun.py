@@ -40,7 +40,7 @@ class Case:
     group: str
     name: str
     setup: Callable[[Path], tuple[list[str], Path | None]]  # tmp -> (argv, out folder to inspect)
-    expect: str  # "error" | "lint-error" | "drop" | "ok"
+    expect: str  # "error" | "lint-error" | "lint-ok" | "drop" | "ok"
     reasons: tuple[str, ...] = ()  # for "drop": any of these must be counted
     cwd: bool = False  # run with the temporary folder as working directory
 
@@ -130,6 +130,10 @@ def classify(case: Case, tmp: Path, limit_s: int = 120) -> Outcome:
         return Outcome(case, False, "LEAK: output quotes a protected file", secs)
     if (tmp / "PWNED").exists():
         return Outcome(case, False, "EXECUTED: a YAML tag ran a command", secs)
+    if case.expect == "lint-ok":
+        good = rc == 0 and out.startswith("ok:")
+        return Outcome(case, good, "ok (lints clean)" if good else f"BASELINE INVALID (exit {rc}) {_short(out + err, tmp)}",
+                       secs)
     if case.expect == "lint-error":
         lines = [ln for ln in out.strip().splitlines() if ln.strip()]
         good = rc == 1 and lines and all(_LINE.match(ln) for ln in lines) and not out.startswith("ok:")

@@ -70,8 +70,10 @@ def _box(o: Any, k: int, folder: Path) -> ScanBox:
     """One annotated object; anything malformed drops the view (annotation_invalid)."""
     try:
         o = V.mapping(o, "object")
-        box = Box3D(V.matrix(o.get("center"), ((3,),), "center"), V.matrix(o.get("size"), ((3,),), "size"),
-                    rot_z(V.number(o.get("yaw"), "yaw")))
+        size = V.matrix(o.get("size"), ((3,),), "size")
+        if np.any(size < 0):
+            raise DropUnit("annotation_invalid", f"size must be >= 0, got {size.tolist()}")
+        box = Box3D(V.matrix(o.get("center"), ((3,),), "center"), size, rot_z(V.number(o.get("yaw"), "yaw")))
         if not isinstance(o.get("category"), str) or not o["category"]:
             raise DropUnit("annotation_invalid", "category must be a name")
         b2 = o.get("bbox2d_xyxy")
