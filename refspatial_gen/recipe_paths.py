@@ -153,3 +153,15 @@ def check_source_config(kind: str, config: Any, index: int, input_root: str | No
                 continue
             w = where + (j,) if isinstance(value, list) else where
             conf.check(v, root, w, _dotted(w))
+
+
+REWRITE_PATHS = ("prompts", "cache")  # the rewrite stage's prompt file (read) and reply cache (written)
+
+
+def check_rewrite(section: Any, conf: Confinement) -> None:
+    """`rewrite.prompts` / `rewrite.cache` are resolved against the recipe's folder and confined."""
+    if not isinstance(section, dict):
+        return
+    for key in REWRITE_PATHS:
+        if section.get(key) is not None:
+            conf.check(section[key], conf.recipe_dir, ("rewrite", key), f"rewrite.{key}")

@@ -112,7 +112,7 @@ def _run_units(task: GroupTask, recipe: Recipe, writer: Any, stats: dict, timer:
             raise _write_error(e, marker) from None
         _fault("start", uid)
         try:
-            sample = make_sample(recipe, Unit(uid, sidx, kind, key), timer)
+            sample = make_sample(recipe, Unit(uid, sidx, kind, key), timer, task.out_dir)
         except DropUnit as e:
             S.add_drop(stats, e.reason)
             continue
