@@ -22,7 +22,7 @@ SMOLLM_GGUF := $(CACHE_DIR)/models/SmolLM2-135M-Instruct.Q4_1.gguf
 REWRITE_STAMP := $(VENV)/.installed-rewrite-$(HASH)
 REWRITE ?=
 
-.PHONY: setup setup-test setup-rewrite shards test test-slow test-all bench preview lint clean audit assets-shared assets-textured
+.PHONY: setup setup-test setup-rewrite shards test test-slow test-all bench preview lint clean audit assets-shared assets-textured reliability
 
 $(STAMP): pyproject.toml
 	@bash scripts/ensure-system-libs.sh
@@ -75,6 +75,10 @@ test-slow: setup-test setup-rewrite
 
 test-all: setup-test setup-rewrite
 	$(BIN)/python -m pytest -q $(PYTEST_ARGS)
+
+# every broken-input and hostile-recipe case, rerun; rewrites the tables in docs/reliability.md
+reliability: setup-test
+	$(BIN)/python scripts/reliability.py --write-doc
 
 bench: setup-test $(if $(REWRITE),setup-rewrite)
 	$(BIN)/python -m refspatial_gen.bench $(if $(REWRITE),--rewrite)

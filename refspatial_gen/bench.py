@@ -157,12 +157,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scale-scenes", type=int, default=96, help="scenes for the 1 vs 2 worker scaling run")
     ap.add_argument("--mem-scenes", type=int, default=16, help="scenes for the memory run (and 10x as many)")
     ap.add_argument("--only", nargs="*", default=None,
-                    choices=["sim", "qa", "image", "stream", "formats", "scale", "eval", "rewrite"])
+                    choices=["sim", "qa", "image", "stream", "formats", "scale", "eval", "manifest", "rewrite"])
     ap.add_argument("--rewrite", action="store_true", help="add the (slow) LLM rewrite section")
     ap.add_argument("--rewrite-scenes", type=int, default=2, help="default-recipe scenes whose pairs are rewritten")
     ap.add_argument("--json", default=None, help="also write the figures to this file")
     args = ap.parse_args(argv)
-    sections = args.only or ["sim", "qa", "image", "stream", "formats", "scale", "eval"] + (["rewrite"] if args.rewrite else [])
+    sections = args.only or ["sim", "qa", "image", "stream", "formats", "scale", "eval", "manifest"] + \
+        (["rewrite"] if args.rewrite else [])
     figures: dict[str, Any] = {"machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.python_version()}"}
     work = Path(tempfile.mkdtemp(prefix="refspatial-bench-"))
     try:
@@ -190,6 +191,10 @@ def main(argv: list[str] | None = None) -> int:
                 figures["scale"] = bench_scaling(args.scale_scenes, args.mem_scenes, work)
             elif name == "eval":
                 figures["eval"] = bench_eval(args.scenes, work)
+            elif name == "manifest":  # input content hashing for the resume fingerprint (run/manifest.py)
+                from refspatial_gen.run.manifest import bench_manifest
+
+                figures["manifest"] = bench_manifest(work)
             elif name == "rewrite":
                 from refspatial_gen.rewrite.bench import bench_rewrite
 

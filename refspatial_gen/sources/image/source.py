@@ -29,6 +29,7 @@ from refspatial_gen.sources.image.annotations import (
     FORMATS, GROUND_STUFF_PREFIXES, SUPPORT_STUFF_PREFIXES, Collection, ImageRecord, annotation_mask,
     load_collection, read_panoptic_ids,
 )
+from refspatial_gen.sources.image.checks import raise_if_invalid
 from refspatial_gen.sources.image.intrinsics import MODES, Intrinsics, resolve_intrinsics
 
 KEY_PREFIX = "image:"
@@ -195,6 +196,7 @@ class ImageSource:
         rec = coll.images.get(iid)
         if rec is None:
             raise DropUnit("unknown_image", f"{iid} not in {root}")
+        raise_if_invalid(rec.meta)  # a malformed annotation entry drops its image (sources/image/checks.py)
         return [build_frame(coll, rec, rng, cfg)]
 
 
