@@ -23,6 +23,7 @@ from refspatial_gen.core.errors import DropUnit
 from refspatial_gen.core.geometry import Box3D, rot_z
 from refspatial_gen.core.mask import RLE
 from refspatial_gen.core.model import Frame, ObjectInstance, SupportSurface
+from refspatial_gen.perception.config import perception_field
 from refspatial_gen.schema import Field
 from refspatial_gen.sources.image import filters as F
 from refspatial_gen.sources.image.annotations import (
@@ -76,6 +77,7 @@ CONFIG_FIELDS: dict[str, Field] = {
                                      doc="geometric depth: keep objects cut by the bottom edge (contact unseen)"),
     "min_objects": Field(int, default=2, min=1),
     "max_objects": Field(int, default=40, min=1),
+    "perception": perception_field(),  # unlabelled photos: annotations from local models (docs/perception.md)
 }
 
 
@@ -163,6 +165,10 @@ class ImageSource:
         if not input_path:
             raise ValueError("the image source needs an input folder (recipe `input:` or --input)")
         cfg = _with_defaults(config)
+        if cfg["perception"]:
+            from refspatial_gen.perception.photos import photo_ids
+            keys = [unit_key(iid) for iid in photo_ids(input_path, cfg)]
+            return keys if scenes is None else keys[:scenes]
         coll = load_collection(input_path, cfg["format"], cfg["annotations"], cfg["images_dir"])
         keys = [unit_key(iid) for iid in coll.ids()]
         return keys if scenes is None else keys[:scenes]
@@ -171,6 +177,9 @@ class ImageSource:
         iid = parse_key(unit_key)
         root = input_root(config)
         cfg = _with_defaults(config)
+        if cfg["perception"]:
+            from refspatial_gen.perception.photos import load_photo
+            return [load_photo(root, iid, rng, cfg, build_frame)]
         coll = load_collection(root, cfg["format"], cfg["annotations"], cfg["images_dir"])
         rec = coll.images.get(iid)
         if rec is None:
