@@ -145,11 +145,15 @@ def model_problem(name: str, section: dict[str, Any] | None, families: tuple[str
     if not cfg.is_file():
         return f"model folder {str(p)!r} has no config.json (not a save_pretrained folder)"
     try:
-        fam = family_of(json.loads(cfg.read_text(encoding="utf-8")))
+        conf = json.loads(cfg.read_text(encoding="utf-8"))
     except (OSError, ValueError) as e:
         return f"{cfg}: {e}"
+    fam = family_of(conf)
     if fam not in families:
         return f"model folder {str(p)!r} holds a {fam or 'unknown'} model; expected {' or '.join(families)}"
+    if fam == "depth-anything" and conf.get("depth_estimation_type") != "metric":
+        return (f"model folder {str(p)!r} holds a relative Depth Anything model; perception needs a metric one "
+                f"(relative models: the image source's `depth: {{estimator: depth-anything}}`)")
     return None
 
 

@@ -134,8 +134,8 @@ def load_photo(root: str | Path, iid: str, rng: np.random.Generator, cfg: dict[s
     from refspatial_gen.sources.image.annotations import Collection, ImageRecord
 
     P = perceiver(cfg)
+    item, res = perceive_photo(root, cfg, iid)  # DropUnit("unknown_image") for an id not in the folder
     path = Path(dict((i, p) for i, p, _, _ in listing(root, cfg))[iid])
-    item, res = perceive_photo(root, cfg, iid)
     H, W = item.rgb.shape[:2]
     fam = P.refs["depth"].family if "depth" in P.refs else None
     intr = dp.resolve(P.cfg["intrinsics"], path, W, H, float(cfg.get("hfov_deg") or 60.0), res.depth, fam)

@@ -39,6 +39,7 @@ class Category:
 
 
 def _words(raw: str, keep_qualifier: bool) -> str:
+    raw = raw.strip().split(" ")[-1] if "_(" in raw and " " in raw.strip() else raw  # LVIS "monitor_(...) computer_monitor"
     m = re.fullmatch(r"(.*?)_\((.*)\)", raw.strip())
     base, qual = (m.group(1), m.group(2)) if m else (raw.strip(), None)
     words = base.replace("_", " ").strip()
