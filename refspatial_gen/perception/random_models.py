@@ -93,7 +93,8 @@ def grounding_dino(out: Path, full: bool) -> Path:
                          "num_attention_heads": 2, "intermediate_size": 37, "max_position_embeddings": 128},
             d_model=32, encoder_layers=1, decoder_layers=2, encoder_ffn_dim=32, decoder_ffn_dim=32,
             encoder_attention_heads=2, decoder_attention_heads=2, num_queries=30, max_text_len=128)
-        ip = GroundingDinoImageProcessorPil(size={"shortest_edge": 64, "longest_edge": 96})
+        # >= 128 px: the fifth feature level (stride 64) keeps at least 2 x 2 cells, which group norm needs
+        ip = GroundingDinoImageProcessorPil(size={"shortest_edge": 128, "longest_edge": 256})
     return _save(GroundingDinoForObjectDetection(cfg).eval(), GroundingDinoProcessor(image_processor=ip, tokenizer=tok), out)
 
 
