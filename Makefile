@@ -10,6 +10,7 @@ OUT ?= out/shards/default
 SCENES ?=
 WORKERS ?= 2
 PYTEST_ARGS ?=
+BENCH_ARGS ?=
 export MUJOCO_GL ?= egl
 export PYOPENGL_PLATFORM ?= egl
 
@@ -24,10 +25,11 @@ $(STAMP): pyproject.toml
 	@rm -f $(VENV)/.installed-[0-9a-f]*
 	@touch $@
 
-# the tests also need the optional extras: Ray (scale-out), torch + transformers + onnxruntime (depth models)
+# the tests also need the optional extras: Ray (scale-out), torch + transformers + onnxruntime (depth models),
+# sentencepiece (SigLIP tokenizers, perception)
 $(TEST_STAMP): $(STAMP)
-	@echo "installing test extras (pytest, hypothesis, ray, torch CPU, transformers, onnxruntime)"
-	@$(BIN)/python -m pip install -q -e '.[test,ray,depth,dev]'
+	@echo "installing test extras (pytest, hypothesis, ray, torch CPU, transformers, onnxruntime, sentencepiece)"
+	@$(BIN)/python -m pip install -q -e '.[test,ray,depth,dev,perception]'
 	@rm -f $(VENV)/.installed-test-*
 	@touch $@
 
@@ -47,7 +49,7 @@ test-all: setup-test
 	$(BIN)/python -m pytest -q $(PYTEST_ARGS)
 
 bench: setup-test
-	$(BIN)/python -m refspatial_gen.bench
+	$(BIN)/python -m refspatial_gen.bench $(BENCH_ARGS)
 
 preview: setup
 	$(BIN)/refspatial-gen preview $(OUT) --out out/preview

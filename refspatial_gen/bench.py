@@ -2,7 +2,8 @@
 
 Sections: the simulated pipeline end to end with a per-stage breakdown and peak memory; QA generation
 from cached scene graphs; the image source per image; streaming reads vs. WebDataset; and the run
-executor's scaling from 1 to 2 workers and its memory when the number of scenes grows 10x.
+executor's scaling from 1 to 2 workers and its memory when the number of scenes grows 10x. Opt-in
+(`--only perception`): unlabelled photos through full-size perception models with random weights.
 """
 
 from __future__ import annotations
@@ -126,12 +127,27 @@ def bench_scaling(scenes: int, mem_scenes: int, work: Path) -> dict[str, Any]:
     return out
 
 
+def bench_perception(n: int, families: str) -> dict[str, Any]:
+    """Opt-in (`--only perception`): photos through full-size random perception models (perception/bench.py)."""
+    from refspatial_gen.perception.bench import DEFAULT_FAMILIES, per_image
+
+    folder = SHARED / "coco_tiny_train2017"
+    if not folder.is_dir():
+        return {"skipped": f"{folder} not found"}
+    fams = tuple(families.split(",")) if families else DEFAULT_FAMILIES
+    return per_image(folder, n, fams)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m refspatial_gen.bench", description=__doc__)
     ap.add_argument("--scenes", type=int, default=24, help="scenes for the simulated pipeline")
     ap.add_argument("--scale-scenes", type=int, default=96, help="scenes for the 1 vs 2 worker scaling run")
     ap.add_argument("--mem-scenes", type=int, default=16, help="scenes for the memory run (and 10x as many)")
-    ap.add_argument("--only", nargs="*", default=None, choices=["sim", "qa", "image", "stream", "scale"])
+    ap.add_argument("--only", nargs="*", default=None, choices=["sim", "qa", "image", "stream", "scale", "perception"],
+                    help="sections to run (perception is opt-in: full-size random models, minutes on CPU)")
+    ap.add_argument("--perception-images", type=int, default=3)
+    ap.add_argument("--perception-families", default="",
+                    help="e.g. owlv2,sam2,depth-pro (default grounding-dino,sam,depth-anything)")
     ap.add_argument("--json", default=None, help="also write the figures to this file")
     args = ap.parse_args(argv)
     sections = args.only or ["sim", "qa", "image", "stream", "scale"]
@@ -154,6 +170,8 @@ def main(argv: list[str] | None = None) -> int:
                 figures["stream"] = bench_stream(shard_dir, work)
             elif name == "scale":
                 figures["scale"] = bench_scaling(args.scale_scenes, args.mem_scenes, work)
+            elif name == "perception":
+                figures["perception"] = bench_perception(args.perception_images, args.perception_families)
             print(f"== {name} ({time.perf_counter() - t0:.1f} s)\n{json.dumps(figures[name], indent=2)}", flush=True)
     finally:
         shutil.rmtree(work, ignore_errors=True)

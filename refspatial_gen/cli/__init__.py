@@ -18,6 +18,7 @@ COMMAND_MODULES = [
     "refspatial_gen.cli.relations",
     "refspatial_gen.cli.sim",
     "refspatial_gen.cli.verify",
+    "refspatial_gen.cli.perception",
 ]
 
 

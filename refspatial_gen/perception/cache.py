@@ -3,8 +3,9 @@ second recipe over the same photos never runs a model twice.
 
 One entry = one `.npz` (arrays plus a JSON string of small values) under `<cache_dir>/<stage>/<k[:2]>/<k>.npz`,
 written to a temporary name and renamed, so a killed worker never leaves half an entry, and two workers
-writing the same entry write the same bytes. What varies between runs (hits, timings) is never stored
-in the output: only in the run log.
+writing the same entry write the same bytes. The worker also keeps its most recent outputs in memory (with
+or without the disk cache), so the other photos of a block, computed together, are not computed again.
+What varies between runs (hits, timings) is never stored in the output.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import hashlib
 import io
 import json
 import os
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -46,17 +48,31 @@ def array_hash(a: np.ndarray) -> str:
     return h.hexdigest()
 
 
+MEMORY_ENTRIES = 64  # recent outputs kept in the worker, disk cache or not (a block's other photos come next)
+
+
 @dataclass
 class Cache:
-    root: Path | None  # None: caching off (everything is a miss, nothing written)
+    root: Path | None  # None: no disk cache (only the worker's recent outputs are kept, in memory)
     hits: dict[str, int] = field(default_factory=dict)
     misses: dict[str, int] = field(default_factory=dict)
+    memory: OrderedDict = field(default_factory=OrderedDict)
 
     def _path(self, stage: str, key: str) -> Path:
         assert self.root is not None
         return self.root / stage / key[:2] / f"{key}.npz"
 
+    def remember(self, stage: str, key: str, value: tuple[dict[str, np.ndarray], dict[str, Any]]) -> None:
+        self.memory[(stage, key)] = value
+        self.memory.move_to_end((stage, key))
+        while len(self.memory) > MEMORY_ENTRIES:
+            self.memory.popitem(last=False)
+
     def get(self, stage: str, key: str) -> tuple[dict[str, np.ndarray], dict[str, Any]] | None:
+        hit = self.memory.get((stage, key))
+        if hit is not None:
+            self.hits[stage] = self.hits.get(stage, 0) + 1
+            return {k: v.copy() for k, v in hit[0].items()}, dict(hit[1])
         if self.root is None:
             self.misses[stage] = self.misses.get(stage, 0) + 1
             return None

@@ -115,6 +115,7 @@ class Perceiver:
             self.seconds[role] = self.seconds.get(role, 0.0) + time.perf_counter() - t0
             self.cache.put(role, key, arrays, meta)
             got = _roundtrip(arrays, meta)
+            self.cache.remember(role, key, got)
         return got
 
     # ------------------------------------------------------------------ cached stage runner
@@ -140,6 +141,7 @@ class Perceiver:
                     if got[i] is None:
                         self.cache.put(role, keys[i], arrays, meta)
                         got[i] = _roundtrip(arrays, meta)
+                        self.cache.remember(role, keys[i], got[i])
         return got
 
     # ------------------------------------------------------------------ the stages

@@ -21,6 +21,21 @@ FOLDERS = {
     "zoedepth": "zoedepth-nyu-kitti", "clip": "clip-vit-base-patch32", "siglip": "siglip-base-patch16-224",
     "vlm": "blip-image-captioning-base",
 }
+# family -> (folder, the published checkpoint to place there, its licence)
+CHECKPOINTS = {
+    "grounding-dino": (FOLDERS["grounding-dino"], "IDEA-Research/grounding-dino-tiny (or -base)", "Apache-2.0"),
+    "owlv2": (FOLDERS["owlv2"], "google/owlv2-base-patch16-ensemble (or -large-)", "Apache-2.0"),
+    "sam": (FOLDERS["sam"], "facebook/sam-vit-base (or -large, -huge)", "Apache-2.0"),
+    "sam2": (FOLDERS["sam2"], "facebook/sam2.1-hiera-tiny (or -small, -base-plus, -large)", "Apache-2.0"),
+    "depth-anything": (FOLDERS["depth-anything"], "depth-anything/Depth-Anything-V2-Metric-Indoor-Small-hf "
+                       "(Outdoor: a second folder)", "Apache-2.0 (Small); Base/Large: CC-BY-NC-4.0"),
+    "depth-pro": (FOLDERS["depth-pro"], "apple/DepthPro-hf", "Apple ML Research (apple-amlr)"),
+    "zoedepth": (FOLDERS["zoedepth"], "Intel/zoedepth-nyu-kitti (or -nyu, -kitti)", "MIT"),
+    "clip": (FOLDERS["clip"], "openai/clip-vit-base-patch32 (or -large-patch14)", "MIT"),
+    "siglip": (FOLDERS["siglip"], "google/siglip-base-patch16-224 (needs sentencepiece)", "Apache-2.0"),
+    "vlm": (FOLDERS["vlm"], "Salesforce/blip-image-captioning-base, or HuggingFaceTB/SmolVLM-256M-Instruct "
+            "(any image-text-to-text model)", "BSD-3-Clause / Apache-2.0"),
+}
 WORDS = sorted({w for n in COCO_THINGS for w in n.split()} | set(
     "a an the photo of picture made wooden metal plastic glass ceramic fabric paper leather blurry dark bright "
     "indoor outdoor room table scene with objects screenshot text document cartoon drawing describe in few words "
