@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from refspatial_gen.perception.runtime import Runtime
+from refspatial_gen.perception.runtime import Runtime, from_folder
 
 
 def _pooled(out):
@@ -22,11 +22,8 @@ class ClipScorer:
     family = "clip"
 
     def __init__(self, path: str, rt: Runtime) -> None:
-        from transformers import AutoModel, AutoProcessor
-
         self.rt = rt
-        self.processor = AutoProcessor.from_pretrained(path, local_files_only=True)
-        self.model = AutoModel.from_pretrained(path, local_files_only=True).eval().to(rt.device)
+        self.processor, self.model = from_folder(path, rt, "AutoModel")
         self.sigmoid = self.model.config.model_type in ("siglip", "siglip2")
         self._text: dict[tuple[str, ...], object] = {}
 

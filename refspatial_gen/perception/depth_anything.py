@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from refspatial_gen.perception.depth import DepthPrediction
-from refspatial_gen.perception.runtime import Runtime, to_device
+from refspatial_gen.perception.runtime import Runtime, from_folder, to_device
 
 
 class DepthAnythingMetric:
@@ -20,11 +20,8 @@ class DepthAnythingMetric:
     predicts_focal = False
 
     def __init__(self, path: str, rt: Runtime) -> None:
-        from transformers import AutoImageProcessor, AutoModelForDepthEstimation
-
         self.rt = rt
-        self.processor = AutoImageProcessor.from_pretrained(path, local_files_only=True)
-        self.model = AutoModelForDepthEstimation.from_pretrained(path, local_files_only=True).eval().to(rt.device)
+        self.processor, self.model = from_folder(path, rt, "AutoModelForDepthEstimation", "AutoImageProcessor")
         if getattr(self.model.config, "depth_estimation_type", "relative") != "metric":
             raise ValueError(f"{path}: a relative Depth Anything model; perception needs a metric checkpoint")
 

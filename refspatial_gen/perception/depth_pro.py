@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from refspatial_gen.perception.depth import DepthPrediction
-from refspatial_gen.perception.runtime import Runtime
+from refspatial_gen.perception.runtime import Runtime, from_folder
 
 
 def _pre(path: str) -> dict:
@@ -33,11 +33,9 @@ class DepthProMetric:
     predicts_focal = True
 
     def __init__(self, path: str, rt: Runtime) -> None:
-        from transformers import AutoModelForDepthEstimation
-
         self.rt = rt
         self.pre = _pre(path)
-        self.model = AutoModelForDepthEstimation.from_pretrained(path, local_files_only=True).eval().to(rt.device)
+        _, self.model = from_folder(path, rt, "AutoModelForDepthEstimation", None)
 
     def _inputs(self, images: list[np.ndarray]):
         import torch

@@ -13,18 +13,15 @@ from __future__ import annotations
 import numpy as np
 
 from refspatial_gen.perception.boxes import Detection
-from refspatial_gen.perception.runtime import Runtime, to_device
+from refspatial_gen.perception.runtime import Runtime, from_folder, to_device
 
 
 class GroundingDinoDetector:
     family = "grounding-dino"
 
     def __init__(self, path: str, rt: Runtime) -> None:
-        from transformers import AutoModelForZeroShotObjectDetection, AutoProcessor
-
         self.rt = rt
-        self.processor = AutoProcessor.from_pretrained(path, local_files_only=True)
-        self.model = AutoModelForZeroShotObjectDetection.from_pretrained(path, local_files_only=True).eval().to(rt.device)
+        self.processor, self.model = from_folder(path, rt, "AutoModelForZeroShotObjectDetection")
         self.max_tokens = int(getattr(self.model.config, "max_text_len", 256))
 
     def _chunks(self, prompts: list[str], per_chunk: int) -> list[tuple[str, list[list[int]]]]:

@@ -12,18 +12,15 @@ from __future__ import annotations
 import numpy as np
 
 from refspatial_gen.perception.boxes import Detection
-from refspatial_gen.perception.runtime import Runtime
+from refspatial_gen.perception.runtime import Runtime, from_folder
 
 
 class Owlv2Detector:
     family = "owlv2"
 
     def __init__(self, path: str, rt: Runtime) -> None:
-        from transformers import AutoModelForZeroShotObjectDetection, AutoProcessor
-
         self.rt = rt
-        self.processor = AutoProcessor.from_pretrained(path, local_files_only=True)
-        self.model = AutoModelForZeroShotObjectDetection.from_pretrained(path, local_files_only=True).eval().to(rt.device)
+        self.processor, self.model = from_folder(path, rt, "AutoModelForZeroShotObjectDetection")
         self._text: dict[tuple[str, ...], object] = {}
         self.base = getattr(self.model, "owlv2", None) or self.model.owlvit
         self.square = self.model.config.model_type == "owlv2"  # OWL-ViT resizes without padding

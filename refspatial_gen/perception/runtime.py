@@ -107,6 +107,17 @@ def load_model(path: str, rt: Runtime):
     return family_class(fam)(path, rt)
 
 
+def from_folder(path: str, rt: Runtime, model_class: str, processor_class: str | None = "AutoProcessor"):
+    """(processor or None, model in eval mode on the runtime's device) from a local folder, never downloaded."""
+    import transformers
+
+    proc = None
+    if processor_class:
+        proc = getattr(transformers, processor_class).from_pretrained(path, local_files_only=True)
+    model = getattr(transformers, model_class).from_pretrained(path, local_files_only=True).eval().to(rt.device)
+    return proc, model
+
+
 def to_device(batch: dict[str, Any], device: str) -> dict[str, Any]:
     """Move the tensors of a processor output to the device (other values as they are)."""
     return {k: (v.to(device) if hasattr(v, "to") else v) for k, v in batch.items()}

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from refspatial_gen.perception.runtime import Runtime, to_device
+from refspatial_gen.perception.runtime import Runtime, from_folder
 
 BOXES_PER_CALL = 8
 
@@ -28,11 +28,8 @@ class SamSegmenter:
     family = "sam"
 
     def __init__(self, path: str, rt: Runtime) -> None:
-        from transformers import AutoModel, AutoProcessor
-
         self.rt = rt
-        self.processor = AutoProcessor.from_pretrained(path, local_files_only=True)
-        self.model = AutoModel.from_pretrained(path, local_files_only=True).eval().to(rt.device)
+        self.processor, self.model = from_folder(path, rt, "AutoModel")
 
     def segment(self, images: list[np.ndarray], boxes: list[list[tuple[float, float, float, float]]],
                 multimask: bool = True) -> list[tuple[list[np.ndarray], list[float]]]:

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from refspatial_gen.perception.runtime import Runtime
+from refspatial_gen.perception.runtime import Runtime, from_folder
 from refspatial_gen.perception.sam import BOXES_PER_CALL, best_masks
 
 IMAGENET_MEAN = (0.485, 0.456, 0.406)
@@ -50,11 +50,9 @@ class Sam2Segmenter:
     family = "sam2"
 
     def __init__(self, path: str, rt: Runtime) -> None:
-        from transformers import AutoModel
-
         self.rt = rt
         self.pre = preprocessing(path)
-        self.model = AutoModel.from_pretrained(path, local_files_only=True).eval().to(rt.device)
+        _, self.model = from_folder(path, rt, "AutoModel", None)
 
     def segment(self, images: list[np.ndarray], boxes: list[list[tuple[float, float, float, float]]],
                 multimask: bool = True) -> list[tuple[list[np.ndarray], list[float]]]:

@@ -10,18 +10,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from refspatial_gen.perception.runtime import Runtime, to_device
+from refspatial_gen.perception.runtime import Runtime, from_folder, to_device
 
 
 class VlmCaptioner:
     family = "vlm"
 
     def __init__(self, path: str, rt: Runtime) -> None:
-        from transformers import AutoModelForImageTextToText, AutoProcessor
-
         self.rt = rt
-        self.processor = AutoProcessor.from_pretrained(path, local_files_only=True)
-        self.model = AutoModelForImageTextToText.from_pretrained(path, local_files_only=True).eval().to(rt.device)
+        self.processor, self.model = from_folder(path, rt, "AutoModelForImageTextToText")
         self.chat = getattr(self.processor, "chat_template", None) is not None
 
     def _inputs(self, crop: np.ndarray, prompt: str):
