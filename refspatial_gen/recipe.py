@@ -27,6 +27,8 @@ TOP_FIELDS: dict[str, Field] = {
     "graph": Field(dict, default=None),
     "qa": Field(dict, default=None),
     "shards": Field(dict, default=None),
+    "splits": Field(dict, default=None, doc="train/val/test fractions and the unseen split (run/splits.py)"),
+    "rewrite": Field(dict, default=None, doc="LLM rewriting of questions (docs/rewrite.md)"),
 }
 
 SOURCE_FIELDS: dict[str, Field] = {
@@ -66,6 +68,8 @@ class Recipe:
     shards: dict[str, Any]
     hash: str  # sha256 over the recipe text and every file it depends on (templates)
     raw: dict[str, Any] = field(default_factory=dict)
+    splits: dict[str, Any] = field(default_factory=dict)  # run/splits.py config, recorded in index.json
+    rewrite: Any = None  # compiled `rewrite:` section (refspatial_gen.rewrite.config), None when absent or off
 
 
 def _source_config(kind: str, data: Any, file: str, lines: dict, path: tuple, errors: list[RecipeError]) -> dict:
@@ -76,7 +80,12 @@ def _source_config(kind: str, data: Any, file: str, lines: dict, path: tuple, er
             errors.append(RecipeError(file, line_of(lines, path), "config must be a mapping"))
             return {}
         return dict(data or {})
-    return check_section(data, fields, file, lines, path, errors)
+    n = len(errors)
+    cfg = check_section(data, fields, file, lines, path, errors)
+    hook = getattr(src, "check_config", None)  # source checks that need the recipe's folder (paths) or files
+    if hook is not None and len(errors) == n:
+        hook(cfg, file, lines, path, errors)
+    return cfg
 
 
 def load_recipe(path: str | Path, *, seed: int | None = None, scenes: int | None = None,
@@ -108,6 +117,7 @@ def load_recipe(path: str | Path, *, seed: int | None = None, scenes: int | None
     if top["sources"] is not None and not top["sources"]:
         errors.append(RecipeError(file, line_of(lines, ("sources",)), "sources must list at least one source"))
     shards = check_section(top["shards"], SHARD_FIELDS, file, lines, ("shards",), errors)
+    splits = importlib.import_module("refspatial_gen.run.splits").check_splits(top["splits"], file, lines, errors)
     graph_cfg = dict(top["graph"] or {})
     qa_cfg = None
     deps: list[Path] = []
@@ -121,6 +131,16 @@ def load_recipe(path: str | Path, *, seed: int | None = None, scenes: int | None
             errors.extend(e.errors)
         else:
             deps = [Path(p) for p in getattr(qa_cfg, "source_files", [])]
+    rewrite_cfg = None
+    if top["rewrite"] is not None and not errors:
+        try:
+            rewrite_cfg = importlib.import_module("refspatial_gen.rewrite.config").load_rewrite_config(
+                top["rewrite"], file, lines)
+        except RecipeError as e:
+            errors.append(e)
+        except RecipeErrors as e:
+            errors.extend(e.errors)
+        deps += [Path(p) for p in getattr(rewrite_cfg, "source_files", ())]
     if errors:
         raise RecipeErrors(errors)
     h = hashlib.sha256(Path(file).read_bytes())
@@ -129,7 +149,7 @@ def load_recipe(path: str | Path, *, seed: int | None = None, scenes: int | None
     return Recipe(
         path=file, name=top["name"] or Path(file).stem, seed=top["seed"] if seed is None else seed,
         scenes=top["scenes"] if scenes is None else scenes, sources=specs, graph=graph_cfg, qa=qa_cfg,
-        shards=shards, hash=h.hexdigest(), raw=data,
+        shards=shards, hash=h.hexdigest(), raw=data, splits=splits, rewrite=rewrite_cfg,
     )
 
 

@@ -346,8 +346,26 @@ def test_multiview_sample_shows_frames_side_by_side_with_points_on_the_answer_fr
     img = render_preview(s, 0)
     single = render_preview(b, 0)
     assert img.shape[1] >= 2 * 720 and single.shape[1] == 720
-    half = img[:540]
+    half = img[:585]
     left, right = half[:, :720], half[:, 726:726 + 720]
     assert np.all(left == draw.ANSWER, axis=-1).sum() == 0  # no answer marker on the question-only view
     assert np.all(right == draw.ANSWER, axis=-1).sum() > 20
     assert point_checks(s, qa)[0][1]
+
+
+def test_two_view_question_is_drawn_in_the_order_the_question_names_its_images():
+    """"The first image" is qa.frame_ids[0]; the preview drew the sample's stored order, so a question on
+    (view1, view0) showed view0 first and looked wrong to a reviewer although the data was right."""
+    a = make_preview_sample(seed=7, frame_id="view0")
+    b = make_preview_sample(seed=8, frame_id="view1")
+    qa = b.qa[0]
+    qa.frame_ids = ["view1", "view0"]  # the question's first image is the sample's second frame
+    qa.answer_struct = {**qa.answer_struct, "frame_id": "view1"}
+    s = Sample("mv", a.frames + b.frames, a.graphs + b.graphs, [qa])
+    img = render_preview(s, 0)[:585]
+    left, right = img[:, :720], img[:, 726:726 + 720]
+    assert np.all(left == draw.ANSWER, axis=-1).sum() > 20  # view1 (the answer's frame) is image 1, on the left
+    assert np.all(right == draw.ANSWER, axis=-1).sum() == 0
+    from refspatial_gen.run.preview import question_frames
+
+    assert [f.frame_id for f in question_frames(s, qa)] == ["view1", "view0"]

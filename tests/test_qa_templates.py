@@ -205,3 +205,10 @@ def test_fuzzed_recipes_lint_without_traceback(tmp_path_factory, doc):
     p.write_text(yaml.safe_dump(doc))
     for e in lint_file(p):
         assert isinstance(e, RecipeError) and str(e).startswith(str(p) + ":") or str(e).startswith(str(d))
+
+
+def test_an_op_that_is_not_a_word_is_a_template_error_not_a_crash():
+    """Hypothesis found `op: []` raising TypeError (unhashable) inside the compiler."""
+    errors: list = []
+    compile_templates({"templates": [{"program": [{"name": None, "op": []}]}]}, "t.yaml", {}, errors)
+    assert any("unknown op" in str(e) for e in errors)

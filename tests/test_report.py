@@ -191,3 +191,17 @@ def test_truth_counts_from_frames_graphs_and_sample_are_summed_merged_and_shown(
     stats = make_stats(truth=merged["truth"])
     page = write_report(tmp_path, stats, RUN_LOG, RECIPE).read_text()
     assert "below_visibility_floor" in page and "Truth checks" in page
+
+
+def test_a_family_the_recipe_asks_for_that_never_fires_is_named_in_the_report(tmp_path):
+    """The image recipe's identify family never fired (it needs a support surface photos lack) and nothing
+    said so: a zero count is invisible in a table of what was produced."""
+    from refspatial_gen.run.report import silent_families
+
+    recipe = {**RECIPE, "families": {"locate": 1.0, "choice": 1.0, "identify": 1.0, "multiview": 0.0}}
+    stats = make_stats()
+    assert silent_families(stats, recipe) == ["identify"]  # multiview has weight 0: not asked for
+    page = write_report(tmp_path, stats, RUN_LOG, recipe).read_text()
+    assert "Families that produced nothing" in page and "<b>identify</b>" in page
+    assert any("identify" in line for line in summary_lines(stats, RUN_LOG, recipe))
+    assert silent_families(stats, RECIPE) == []

@@ -1,12 +1,15 @@
 """The asset catalog: categories with size ranges, colours, materials and semantic fronts (assets/catalog.yaml).
 
 Why a data file: recipe authors add or tune object categories without touching Python; errors in it are
-reported as `file:line: message` like any recipe error.
+reported as `file:line: message` like any recipe error. A catalog can `include:` others (`builtin` is
+the package's own catalog) and extends them: its colours, materials and categories are added, a category
+of the same name replaces the included one. Every path resolves relative to the file that names it
+(see assets/paths.py), and every path is checked when the catalog loads, so a missing mesh is a recipe
+error before any work, never a unit that silently drops.
 """
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
@@ -14,12 +17,16 @@ from typing import Any
 
 import numpy as np
 
-from refspatial_gen.core.errors import RecipeError
+from refspatial_gen.assets.paths import REPO_ROOT, cache_root, missing_hint, resolve_path, shared_data_root
+from refspatial_gen.core.errors import RecipeError, RecipeErrors
 from refspatial_gen.yamlpos import line_of, load_yaml
 
-REPO_ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_CATALOG = REPO_ROOT / "assets" / "catalog.yaml"
 SCALES = ("tabletop", "room")
+UP_AXES = ("z", "y", "x", "-z", "-y", "-x")
+CATEGORY_KEYS = {"builder", "dims", "colors", "materials", "scale", "front", "front_phrase", "weight", "accent",
+                 "fits_inside", "external", "label"}
+EXTERNAL_KEYS = {"mesh", "texture", "collision", "scale", "up", "parts", "rgba", "mass", "sha256", "source"}
 
 
 @dataclass(frozen=True)
@@ -37,8 +44,9 @@ class Category:
     weight: float = 1.0
     accent: tuple[str, ...] = ()
     fits_inside: bool = False  # small enough to be put inside containers
-    external: dict[str, Any] = field(default_factory=dict)  # mesh, collision, texture, scale for external meshes
+    external: dict[str, Any] = field(default_factory=dict)  # resolved absolute paths (mesh, texture, collision, parts)
     label: str = ""  # the category word used in text (defaults to the name)
+    origin: tuple[str, int] = ("", 0)  # (file, line) that defines it: `assets set-front` edits there
 
     def sample_dims(self, rng: np.random.Generator) -> dict[str, float]:
         return {k: float(rng.uniform(lo, hi)) for k, (lo, hi) in sorted(self.dims.items())}
@@ -50,99 +58,224 @@ class Catalog:
     colors: dict[str, tuple[float, float, float]]
     materials: dict[str, dict[str, float]]
     categories: dict[str, Category]
+    files: tuple[str, ...] = ()  # every file read (includes first)
 
     def names(self, scale: str | None = None) -> list[str]:
         return sorted(n for n, c in self.categories.items() if scale is None or c.scale == scale)
 
-
-def shared_data_root() -> Path:
-    """Where external meshes live: $REFSPATIAL_SHARED_DATA, else ../shared/data next to the repository."""
-    env = os.environ.get("REFSPATIAL_SHARED_DATA")
-    return Path(env) if env else REPO_ROOT.parent / "shared" / "data"
+    def external_names(self) -> list[str]:
+        return sorted(n for n, c in self.categories.items() if c.builder == "external")
 
 
-def resolve_external(path: str) -> Path:
-    """`shared:ycb_sim/x/model.obj` -> under shared_data_root(); `$VAR/...` expanded; relative to the repo otherwise."""
-    if path.startswith("shared:"):
-        return shared_data_root() / path[len("shared:"):]
-    p = Path(os.path.expandvars(path))
-    return p if p.is_absolute() else REPO_ROOT / p
+def resolve_external(path: str, base: Path | None = None) -> Path:
+    """Kept for callers of the old API: a catalog path spec -> absolute path."""
+    return resolve_path(path, base)
 
 
 def _floats(v, n: int | None = None) -> bool:
     return isinstance(v, list) and (n is None or len(v) == n) and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)
 
 
-def _parse_category(name: str, d: Any, file: str, lines: dict, colors: dict, materials: dict, builders: set[str]) -> Category:
-    path = ("categories", name)
+class _Ctx:
+    """One file being parsed: where errors point and what paths resolve against."""
 
-    def err(msg: str, key: str | None = None) -> RecipeError:
-        return RecipeError(file, line_of(lines, path + ((key,) if key else ())), f"category {name!r}: {msg}")
+    def __init__(self, file: str, lines: dict, errors: list[RecipeError]):
+        self.file, self.lines, self.errors, self.base = file, lines, errors, Path(file).resolve().parent
+        self.reported: set[str] = set()
+
+    def err(self, path: tuple, msg: str) -> None:
+        self.errors.append(RecipeError(self.file, line_of(self.lines, path), msg))
+
+    def path(self, spec: Any, where: tuple, what: str, want_dir: bool = False) -> str | None:
+        """Resolve and check one path spec; None (and an error) when it is not there."""
+        if not isinstance(spec, str) or not spec:
+            self.err(where, f"{what} must be a path string")
+            return None
+        p = resolve_path(spec, self.base)
+        for prefix, root in (("shared:", shared_data_root()), ("cache:", cache_root())):
+            if spec.startswith(prefix) and not root.is_dir():  # one error for the root, not one per asset
+                if prefix not in self.reported:
+                    self.reported.add(prefix)
+                    self.err(where, f"{what} {spec!r}: folder {root} does not exist{missing_hint(spec)}")
+                return None
+        ok = p.is_dir() if want_dir else p.is_file()
+        if not ok:
+            kind = "folder" if want_dir else "file"
+            self.err(where, f"{what} {spec!r}: {kind} {p} not found{missing_hint(spec)}")
+            return None
+        return str(p)
+
+
+def _external(name: str, ext: Any, c: _Ctx) -> dict[str, Any]:
+    where = ("categories", name, "external")
+    if not isinstance(ext, dict):
+        c.err(where, f"category {name!r}: external must be a mapping")
+        return {}
+    for k in ext:
+        if k not in EXTERNAL_KEYS:
+            c.err(where + (k,), f"category {name!r}: unknown external key {k!r} (known: {', '.join(sorted(EXTERNAL_KEYS))})")
+    out: dict[str, Any] = {"spec": dict(ext)}
+    if "mesh" not in ext:
+        c.err(where, f"category {name!r}: external categories need external.mesh")
+    else:
+        out["mesh"] = c.path(ext["mesh"], where + ("mesh",), f"category {name!r}: mesh")
+    if ext.get("texture"):
+        out["texture"] = c.path(ext["texture"], where + ("texture",), f"category {name!r}: texture")
+    col = ext.get("collision", "hull")
+    out["collision"] = "hull" if col == "hull" else c.path(col, where + ("collision",), f"category {name!r}: collision parts", True)
+    if out["collision"] and out["collision"] != "hull" and not list(Path(out["collision"]).glob("*.stl")):
+        c.err(where + ("collision",), f"category {name!r}: no convex parts (*.stl) in {out['collision']}")
+    s = ext.get("scale", 1.0)
+    if not (isinstance(s, (int, float)) and not isinstance(s, bool) and s > 0):
+        c.err(where + ("scale",), f"category {name!r}: scale must be a number > 0")
+        s = 1.0
+    out["scale"] = float(s)
+    out["up"] = str(ext.get("up", "z"))
+    if out["up"] not in UP_AXES:
+        c.err(where + ("up",), f"category {name!r}: up must be one of {', '.join(UP_AXES)}")
+    if ext.get("rgba") is not None and not _floats(ext["rgba"], 4):
+        c.err(where + ("rgba",), f"category {name!r}: rgba must be [r, g, b, a] in 0..1")
+    out["rgba"] = tuple(float(x) for x in ext["rgba"]) if _floats(ext.get("rgba"), 4) else None
+    parts = []
+    for i, p in enumerate(ext.get("parts") or []):
+        if not isinstance(p, dict) or "mesh" not in p:
+            c.err(where + ("parts", i), f"category {name!r}: each part needs a mesh")
+            continue
+        rgba = p.get("rgba")
+        if rgba is not None and not _floats(rgba, 4):
+            c.err(where + ("parts", i), f"category {name!r}: part rgba must be [r, g, b, a]")
+            rgba = None
+        parts.append({"mesh": c.path(p["mesh"], where + ("parts", i), f"category {name!r}: part mesh"),
+                      "rgba": None if rgba is None else tuple(float(x) for x in rgba)})
+    out["parts"] = parts
+    m = ext.get("mass", 0.0)
+    if not (isinstance(m, (int, float)) and not isinstance(m, bool) and m >= 0):
+        c.err(where + ("mass",), f"category {name!r}: mass must be kilograms >= 0")
+        m = 0.0
+    out["mass"] = float(m)
+    return out
+
+
+def _parse_category(name: str, d: Any, c: _Ctx, colors: dict, materials: dict, builders: set[str]) -> Category | None:
+    path = ("categories", name)
+    n0 = len(c.errors)
+
+    def err(msg: str, key: str | None = None) -> None:
+        c.err(path + ((key,) if key else ()), f"category {name!r}: {msg}")
 
     if not isinstance(d, dict):
-        raise err("must be a mapping")
-    known = {"builder", "dims", "colors", "materials", "scale", "front", "front_phrase", "weight", "accent", "fits_inside", "external", "label"}
+        err("must be a mapping")
+        return None
     for k in d:
-        if k not in known:
-            raise err(f"unknown key {k!r} (known: {', '.join(sorted(known))})", k)
+        if k not in CATEGORY_KEYS:
+            err(f"unknown key {k!r} (known: {', '.join(sorted(CATEGORY_KEYS))})", k)
     builder = d.get("builder", "external" if "external" in d else None)
     if builder not in builders and builder != "external":
-        raise err(f"unknown builder {builder!r} (known: {', '.join(sorted(builders))})", "builder")
+        err(f"unknown builder {builder!r} (known: {', '.join(sorted(builders))})", "builder")
     dims = {}
     for k, v in (d.get("dims") or {}).items():
         if not _floats(v, 2) or v[0] > v[1] or v[0] < 0:
-            raise err(f"dims.{k} must be [lo, hi] with 0 <= lo <= hi, got {v!r}", "dims")
-        dims[str(k)] = (float(v[0]), float(v[1]))
+            err(f"dims.{k} must be [lo, hi] with 0 <= lo <= hi, got {v!r}", "dims")
+        else:
+            dims[str(k)] = (float(v[0]), float(v[1]))
     cols = tuple(d.get("colors") or ())
-    for c in cols + tuple(d.get("accent") or ()):
-        if c not in colors:
-            raise err(f"unknown colour {c!r} (add it under colors:)", "colors")
+    for col in cols + tuple(d.get("accent") or ()):
+        if col not in colors:
+            err(f"unknown colour {col!r} (add it under colors:)", "colors")
     mats = tuple(d.get("materials") or ("plastic",))
     for m in mats:
         if m not in materials:
-            raise err(f"unknown material {m!r}", "materials")
+            err(f"unknown material {m!r}", "materials")
     front = d.get("front")
     if front is not None:
         if not _floats(front, 3) or np.linalg.norm(front) < 1e-9:
-            raise err("front must be a non-zero [x, y, z] vector", "front")
-        front = tuple(float(x) / float(np.linalg.norm(front)) for x in front)
-        if not d.get("front_phrase"):
-            raise err("a front needs a front_phrase", "front")
+            err("front must be a non-zero [x, y, z] vector", "front")
+            front = None
+        else:
+            front = tuple(float(x) / float(np.linalg.norm(front)) for x in front)
+            if not d.get("front_phrase"):
+                err("a front needs a front_phrase", "front")
     scale = d.get("scale", "tabletop")
     if scale not in SCALES:
-        raise err(f"scale must be one of {SCALES}", "scale")
-    ext = dict(d.get("external") or {})
-    if builder == "external" and "mesh" not in ext:
-        raise err("external categories need external.mesh", "external")
-    if builder != "external" and not cols:
-        raise err("needs at least one colour", "colors")
+        err(f"scale must be one of {SCALES}", "scale")
+    ext = _external(name, d["external"], c) if "external" in d else {}
+    if builder == "external" and "external" not in d:
+        err("external categories need external.mesh", "external")
+    if not cols:
+        err("needs at least one colour", "colors")
+    if len(c.errors) > n0:
+        return None
     return Category(name, builder, dims, cols, mats, scale, front, d.get("front_phrase"), float(d.get("weight", 1.0)),
                     tuple(d.get("accent") or ()), bool(d.get("fits_inside", False)), ext,
-                    str(d.get("label") or name))
+                    str(d.get("label") or name), (c.file, line_of(c.lines, path)))
 
 
-@lru_cache(maxsize=8)
-def load_catalog(path: str | None = None) -> Catalog:
-    """Load and check a catalog file (cached per process; the file is read-only data)."""
+def _load_file(file: str, stack: tuple[str, ...], errors: list[RecipeError], acc: dict) -> None:
+    """Parse `file` (its includes first) into `acc` (colors, materials, raw categories, files)."""
     from refspatial_gen.assets.shapes import BUILDERS
 
-    file = str(path or DEFAULT_CATALOG)
-    data, lines = load_yaml(file)
+    try:
+        data, lines = load_yaml(file)
+    except RecipeError as e:
+        errors.append(e)
+        return
+    c = _Ctx(file, lines, errors)
     if not isinstance(data, dict):
-        raise RecipeError(file, 1, "catalog must be a mapping with colors, materials and categories")
-    colors = {}
+        c.err((), "catalog must be a mapping with colors, materials and categories (and optionally include)")
+        return
+    for k in data:
+        if k not in ("include", "colors", "materials", "categories"):
+            c.err((k,), f"unknown top-level key {k!r} (known: include, colors, materials, categories)")
+    inc = data.get("include") or []
+    for i, spec in enumerate([inc] if isinstance(inc, str) else inc):
+        where = ("include",) if isinstance(inc, str) else ("include", i)
+        target = str(DEFAULT_CATALOG) if spec == "builtin" else c.path(spec, where, "include")
+        if target is None:
+            continue
+        if str(Path(target).resolve()) in stack:
+            c.err(where, f"include cycle: {' -> '.join(stack + (target,))}")
+            continue
+        _load_file(target, stack + (str(Path(target).resolve()),), errors, acc)
     for k, v in (data.get("colors") or {}).items():
         if not _floats(v, 3):
-            raise RecipeError(file, line_of(lines, ("colors", k)), f"colour {k!r} must be [r, g, b] in 0..1")
-        colors[str(k)] = tuple(float(x) for x in v)
-    materials = {}
+            c.err(("colors", k), f"colour {k!r} must be [r, g, b] in 0..1")
+        else:
+            acc["colors"][str(k)] = tuple(float(x) for x in v)
     for k, v in (data.get("materials") or {}).items():
         if not isinstance(v, dict):
-            raise RecipeError(file, line_of(lines, ("materials", k)), f"material {k!r} must be a mapping")
-        materials[str(k)] = {str(a): float(b) for a, b in v.items()}
-    cats = {}
+            c.err(("materials", k), f"material {k!r} must be a mapping")
+        else:
+            acc["materials"][str(k)] = {str(a): float(b) for a, b in v.items()}
     for name, d in (data.get("categories") or {}).items():
-        cats[str(name)] = _parse_category(str(name), d, file, lines, colors, materials, set(BUILDERS))
-    if not cats:
-        raise RecipeError(file, 1, "catalog has no categories")
-    return Catalog(file, colors, materials, dict(sorted(cats.items())))
+        cat = _parse_category(str(name), d, c, acc["colors"], acc["materials"], set(BUILDERS))
+        if cat is not None:
+            acc["categories"][str(name)] = cat
+    acc["files"].append(file)
+
+
+@lru_cache(maxsize=16)
+def _load(files: tuple[str, ...], _key: tuple) -> Catalog:
+    errors: list[RecipeError] = []
+    acc: dict[str, Any] = {"colors": {}, "materials": {}, "categories": {}, "files": []}
+    for f in files:
+        _load_file(f, (str(Path(f).resolve()),), errors, acc)
+    if not acc["categories"] and not errors:
+        errors.append(RecipeError(files[-1], 1, "catalog has no categories"))
+    if errors:
+        raise errors[0] if len(errors) == 1 else RecipeErrors(errors)
+    return Catalog(files[-1], acc["colors"], acc["materials"], dict(sorted(acc["categories"].items())), tuple(acc["files"]))
+
+
+def load_catalog(path: str | list[str] | tuple[str, ...] | None = None) -> Catalog:
+    """Load and check one catalog, or several merged in order (cached per process and data roots).
+
+    Raises RecipeError / RecipeErrors naming file and line for every problem, missing files included.
+    """
+    if not path:
+        files: tuple[str, ...] = (str(DEFAULT_CATALOG),)
+    elif isinstance(path, (list, tuple)):
+        files = tuple(str(p) for p in path)
+    else:
+        files = (str(path),)
+    stamps = tuple(Path(f).stat().st_mtime_ns if Path(f).exists() else 0 for f in files)  # edits (set-front) reload
+    return _load(files, (str(shared_data_root()), str(cache_root()), stamps))

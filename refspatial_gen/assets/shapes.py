@@ -75,7 +75,9 @@ class Part:
     visual: bool = True
     collide: bool = True
     uv: np.ndarray | None = None  # per-vertex texture coordinates of `mesh` (external textured meshes)
-    texture: str | None = None  # image file for `uv`
+    texture: str | None = None  # where the texture for `uv` came from (image file, or "<mesh file>#<n>" if embedded)
+    texture_img: np.ndarray | None = None  # its pixels, uint8 HxWx3, first row = top of the image (v = 1)
+    rgba: tuple[float, float, float, float] | None = None  # an authored fixed colour (overrides `role`)
 
     def trimesh(self) -> trimesh.Trimesh:
         """This part as a triangle mesh in the object frame (for boxes, silhouettes and USD); built once."""
@@ -329,14 +331,14 @@ def build_banana(d: Dims, rng) -> AssetGeometry:
 def build_laptop(d: Dims, rng) -> AssetGeometry:
     x, y, t = d["x"], d["y"], d.get("t", 0.018)
     ang = np.deg2rad(d.get("open_deg", 105 + 15 * rng.random()))
-    R = rot_axis("y", -(np.pi - ang))  # screen hinged at -x edge, leaning back
+    R = rot_axis("y", -ang)  # lid hinged at the -x edge, opened by `ang` from the base: leaning back
     hinge = np.array([-x / 2, 0, t])
-    sc = hinge + R @ np.array([x / 2, 0, 0.004])
+    sc = hinge + R @ np.array([x / 2, 0, -0.004])
     parts = [_box((0, 0, t / 2), (x / 2, y / 2, t / 2)),
              _box((x * 0.08, 0, t + 0.0005), (x * 0.3, y * 0.42, 0.001), role="black", collide=False),
              _box(sc, (x / 2, y / 2, 0.004), rot=R)]
     Rz = R @ np.array([0, 0, 1.0])
-    parts.append(_box(sc + Rz * 0.0045, (x * 0.45, y * 0.45, 0.0008), rot=R, role="screen", collide=False))
+    parts.append(_box(sc - Rz * 0.0045, (x * 0.45, y * 0.45, 0.0008), rot=R, role="screen", collide=False))  # faces +x
     return AssetGeometry(parts, density=500)
 
 

@@ -17,7 +17,11 @@ COMMAND_MODULES = [
     "refspatial_gen.cli.data",
     "refspatial_gen.cli.relations",
     "refspatial_gen.cli.sim",
+    "refspatial_gen.cli.assets",
     "refspatial_gen.cli.verify",
+    "refspatial_gen.cli.eval",
+    "refspatial_gen.cli.audit",
+    "refspatial_gen.cli.rewrite",
     "refspatial_gen.cli.perception",
 ]
 

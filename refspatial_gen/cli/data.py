@@ -9,11 +9,15 @@ from pathlib import Path
 
 
 def register(sub) -> None:
-    p = sub.add_parser("export", help="export a shard directory to the RefSpatial layout, WebDataset tars or JSON lines")
+    from refspatial_gen.shards.export import FORMATS
+
+    p = sub.add_parser("export", help="export a shard directory to a trainer's or benchmark's layout (docs/shards.md, docs/eval.md)")
     p.add_argument("dir", help="shard directory (with index.json)")
-    p.add_argument("--format", required=True, choices=["refspatial", "webdataset", "jsonl"])
+    p.add_argument("--format", required=True, choices=FORMATS)
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--no-check", action="store_true", help="skip the sha256 check of the shards against index.json")
+    p.add_argument("--split", action="append", choices=["train", "val", "test", "unseen"],
+                   help="sft, rft, refspatial-bench: splits to write (repeatable; defaults: train / train / test)")
     p.set_defaults(func=cmd_export)
 
     q = sub.add_parser("inspect", help="a readable summary of one shard's samples")
@@ -38,8 +42,13 @@ def cmd_export(args) -> int:
             for pr in problems:
                 print(f"{pr['file']}: {pr['problem']}: {pr['detail']}", file=sys.stderr)
             return _fail(f"{args.dir}: {len(problems)} integrity problem(s); nothing exported")
+    kw = {}
+    if args.split:
+        if args.format not in ("sft", "rft", "refspatial-bench"):
+            return _fail(f"--split applies to the sft, rft and refspatial-bench formats, not {args.format}")
+        kw["splits"] = tuple(args.split)
     try:
-        res = export(Path(args.dir), args.format, Path(args.out))
+        res = export(Path(args.dir), args.format, Path(args.out), **kw)
     except (ValueError, OSError) as e:  # ShardError is a ValueError and names the file
         return _fail(str(e))
     if args.format == "refspatial":

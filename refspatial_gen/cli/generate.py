@@ -51,12 +51,19 @@ def cmd_shards(args) -> int:
     if not args.no_report:
         from refspatial_gen.run.report import write_report
 
-        report = write_report(out, st, log, {k: v for k, v in result["index"].items() if k not in ("shards", "stats")})
+        info = {k: v for k, v in result["index"].items() if k not in ("shards", "stats")}
+        info["families"] = {f.name: f.weight for f in recipe.qa.families}
+        report = write_report(out, st, log, info)
         print(f"report: {report}")
     dropped = sum(st["dropped"].values())
     print(f"{out}: {st['samples']} samples, {st['qa_pairs']} QA pairs in {len(result['index']['shards'])} shards; "
           f"{dropped} of {st['units']} units dropped {st['dropped'] or ''}; "
           f"{log['wall_seconds']:.1f} s, {log['qa_per_s']:.1f} QA/s")
+    from refspatial_gen.run.report import silent_families
+
+    silent = silent_families(st, {"families": {f.name: f.weight for f in recipe.qa.families}})
+    if silent:
+        print(f"warning: families that produced no QA pair: {', '.join(silent)} (see the report)", file=sys.stderr)
     if log["errors"]:
         print(f"warning: {len(log['errors'])} units failed with internal errors; tracebacks in {out / 'run_log.json'}",
               file=sys.stderr)

@@ -1,4 +1,4 @@
-"""CLI: `refspatial-gen assets list [--json]`, `refspatial-gen sim usd|gallery|bench`."""
+"""CLI: `refspatial-gen sim usd|gallery|bench|describe` (asset commands are in cli/assets.py)."""
 
 from __future__ import annotations
 
@@ -11,6 +11,13 @@ import numpy as np
 
 def _config(args) -> dict:
     cfg: dict = {}
+    if getattr(args, "recipe", None):
+        from refspatial_gen.recipe import load_recipe
+
+        spec = next((s for s in load_recipe(args.recipe).sources if s.kind == "sim"), None)
+        if spec is None:
+            raise SystemExit(f"{args.recipe}: no sim source")
+        cfg = {k: v for k, v in spec.config.items() if not k.startswith("_")}
     if getattr(args, "catalog", None):
         cfg["catalog"] = args.catalog
     if getattr(args, "layout", None):
@@ -36,28 +43,6 @@ def _unit_rng(seed: int, unit: str) -> np.random.Generator:
     return np.random.default_rng(h)
 
 
-def cmd_assets_list(args) -> int:
-    from refspatial_gen.assets import load_catalog
-    from refspatial_gen.assets.external import external_available
-
-    cat = load_catalog(args.catalog or None)
-    rows = []
-    for n, c in cat.categories.items():
-        rows.append({"name": n, "label": c.label, "builder": c.builder, "scale": c.scale,
-                     "dims": {k: list(v) for k, v in c.dims.items()}, "colors": list(c.colors), "materials": list(c.materials),
-                     "front": None if c.front is None else list(c.front), "front_phrase": c.front_phrase,
-                     "fits_inside": c.fits_inside, "available": c.builder != "external" or external_available(c)})
-    if args.json:
-        print(json.dumps({"catalog": cat.path, "categories": rows}, indent=1, sort_keys=True))
-        return 0
-    print(f"{len(rows)} categories in {cat.path}")
-    for r in rows:
-        front = f"front: {r['front_phrase']}" if r["front_phrase"] else ""
-        avail = "" if r["available"] else "  (mesh file missing)"
-        print(f"  {r['name']:22s} {r['scale']:8s} {r['builder']:11s} {','.join(r['colors'][:5]):34s} {front}{avail}")
-    return 0
-
-
 def cmd_usd(args) -> int:
     from refspatial_gen.sources.sim import generate
     from refspatial_gen.sources.sim.usd import export_usd
@@ -65,8 +50,26 @@ def cmd_usd(args) -> int:
 
     cfg = _config(args)
     frames, desc, sim = generate(args.unit, _unit_rng(args.seed, args.unit), cfg, keep_scene=True)
-    out = export_usd(desc, sim, frames, args.out, load_catalog(cfg.get("catalog") or None).colors)
+    from refspatial_gen.sources.sim.source import catalog_paths
+
+    out = export_usd(desc, sim, frames, args.out, load_catalog(catalog_paths(cfg.get("catalog")) or None).colors)
     print(f"wrote {out} ({len(desc.objects)} objects, {len(frames)} cameras)")
+    return 0
+
+
+def cmd_describe(args) -> int:
+    """The renderer-neutral description of one settled scene (what a second renderer draws)."""
+    from refspatial_gen.assets import load_catalog
+    from refspatial_gen.sources.sim import generate
+    from refspatial_gen.sources.sim.scene import SettledScene
+    from refspatial_gen.sources.sim.source import catalog_paths
+
+    cfg = _config(args)
+    frames, desc, sim = generate(args.unit, _unit_rng(args.seed, args.unit), cfg, keep_scene=True)
+    cat = load_catalog(catalog_paths(cfg.get("catalog")) or None)
+    scene = SettledScene(desc, sim, cat.colors, cat.materials).describe([f.camera for f in frames])
+    out = scene.save(args.out)
+    print(f"wrote {out}/scene.json ({len(scene.meshes)} meshes, {len(scene.lights)} lights, {len(scene.cameras)} cameras)")
     return 0
 
 
@@ -86,13 +89,6 @@ def cmd_bench(args) -> int:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    a = sub.add_parser("assets", help="asset catalog of the simulated source")
-    asub = a.add_subparsers(dest="assets_command", required=True)
-    ls = asub.add_parser("list", help="list catalog categories")
-    ls.add_argument("--json", action="store_true")
-    ls.add_argument("--catalog", default="", help="catalog YAML (default assets/catalog.yaml)")
-    ls.set_defaults(func=cmd_assets_list)
-
     s = sub.add_parser("sim", help="simulated scenes: USD export, preview gallery, timing")
     ssub = s.add_subparsers(dest="sim_command", required=True)
 
@@ -100,6 +96,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         p.add_argument("--seed", type=int, default=0)
         p.add_argument("--catalog", default="")
         p.add_argument("--layout", choices=["tabletop", "room"], default=None)
+        p.add_argument("--recipe", default="", help="take the sim source's config from this recipe")
         p.add_argument("--external-prob", type=float, default=None, dest="external_prob")
         p.add_argument("--views", type=int, default=None)
 
@@ -108,6 +105,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     u.add_argument("--out", required=True)
     common(u)
     u.set_defaults(func=cmd_usd)
+    d = ssub.add_parser("describe", help="write one scene's renderer-neutral description (scene.json, meshes.npz, textures)")
+    d.add_argument("--unit", default="sim:000000")
+    d.add_argument("--out", required=True, help="folder")
+    common(d)
+    d.set_defaults(func=cmd_describe)
     g = ssub.add_parser("gallery", help="contact sheet of generated scenes (PNG or JPEG)")
     g.add_argument("--out", required=True)
     g.add_argument("--scenes", type=int, default=24)

@@ -105,8 +105,6 @@ PERCEPTION_FIELDS: dict[str, Field] = {
     "segmenter": Field(dict, default=None, doc="SAM / SAM 2 masks from boxes (without: box annotations)"),
     "depth": Field(dict, default=None, doc="metric depth model (photos; scans use their measured depth)"),
     "intrinsics": Field(list, default=list(INTRINSICS_ORDER), doc="order of intrinsics sources"),
-    "size_prior_ratio": Field(float, default=3.0, min=0.0,
-                              doc="photos: drop a category with an object this many times its typical height (0: off)"),
     "captions": Field(dict, default=None),
     "fusion": Field(dict, default=None, doc="box-less scans: multi-view fusion settings"),
 }

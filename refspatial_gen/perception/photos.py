@@ -126,24 +126,6 @@ def _annotations(res: Perceived, W: int, H: int, min_fill: float) -> tuple[list,
     return anns, drops
 
 
-def size_conflicts(frame, ratio: float) -> set[str]:
-    """Categories with an object far beyond its category's typical size (depth/size_prior.py): its height
-    (gravity known) or its longest side (unknown) over `ratio` x (ratio + 2 for the longest side) the
-    typical height. Such an object is a wrong box or a wrong depth; its whole category goes, as the image
-    source drops a category that lost an instance (`category_incomplete`)."""
-    from refspatial_gen.depth.size_prior import typical_height
-
-    bad = set()
-    for o in frame.objects:
-        t = typical_height(o.category)
-        if t is None or ratio <= 0:
-            continue
-        size = float(o.box.size[2]) if frame.camera.gravity_known else float(max(o.box.size))
-        if size > (ratio if frame.camera.gravity_known else ratio + 2.0) * t:
-            bad.add(o.category)
-    return bad
-
-
 def _record(res: Perceived, P: Perceiver, drops: dict[str, int]) -> tuple[dict, dict]:
     truth = {f"perception_{k}": v for k, v in res.drops.items()}
     for k, v in drops.items():
@@ -156,9 +138,8 @@ def _record(res: Perceived, P: Perceiver, drops: dict[str, int]) -> tuple[dict, 
 
 def load_photo(root: str | Path, iid: str, rng: np.random.Generator, cfg: dict[str, Any],
                build_frame: Callable) -> Any:
-    """One unlabelled photo -> one Frame, through the image source's `build_frame` (or DropUnit)."""
-    import copy
-
+    """One unlabelled photo -> one Frame, through the image source's `build_frame` (or DropUnit); lifted
+    objects outside their category's size range are removed there (sources/image/truthcheck.py)."""
     from refspatial_gen.perception import depth as dp
     from refspatial_gen.perception.captions import caption_frame
     from refspatial_gen.sources.image.annotations import Collection, ImageRecord
@@ -177,20 +158,9 @@ def load_photo(root: str | Path, iid: str, rng: np.random.Generator, cfg: dict[s
         _DEPTH[key] = (depth, how, {"model": P.model_meta()["depth"]})
         cfg2["depth"] = {"estimator": "perception"}
     anns, drops = _annotations(res, W, H, P.cfg["segmenter"]["min_box_fill"] if P.cfg.get("segmenter") else 0.0)
-    state = copy.deepcopy(rng.bit_generator.state)
     try:
-        bad: set[str] = set()
-        while True:  # each round removes at least one category, so this ends
-            kept = [a for a in anns if a.category not in bad]
-            rec = ImageRecord(iid, path, W, H, kept, intrinsics=(intr.fx, intr.fy, intr.cx, intr.cy))
-            rng.bit_generator.state = copy.deepcopy(state)  # every attempt draws what a single build would
-            frame = build_frame(Collection(Path(root), "perception", {iid: rec}), rec, rng, cfg2)
-            new = size_conflicts(frame, P.cfg["size_prior_ratio"]) - bad
-            if not new:
-                break
-            bad |= new  # lift again without them: their other instances would make ordinals wrong
-        if bad:
-            drops["perception_size_prior_conflict"] = len(anns) - len(kept)
+        rec = ImageRecord(iid, path, W, H, anns, intrinsics=(intr.fx, intr.fy, intr.cx, intr.cy))
+        frame = build_frame(Collection(Path(root), "perception", {iid: rec}), rec, rng, cfg2)
     finally:
         _DEPTH.pop(key, None)
     frame.meta["intrinsics"] = intr.meta()

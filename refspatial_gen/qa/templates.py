@@ -379,7 +379,7 @@ def _compile_program(v: Any, path: tuple, ctx: _Ctx, slots: dict[str, SlotSpec],
             ctx.err(p, f"a step must be a mapping with 'op:', got {type(raw).__name__}")
             return []
         op = raw.get("op")
-        if op not in ops.OPS:
+        if not isinstance(op, str) or op not in ops.OPS:
             ctx.err(p + ("op",), f"unknown op {op!r} (known: {', '.join(sorted(ops.OPS))})")
             return []
         spec = ops.OPS[op]

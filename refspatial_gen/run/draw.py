@@ -274,3 +274,10 @@ def vstack(top: np.ndarray, bottom: np.ndarray, bg: RGB = (24, 26, 30)) -> np.nd
     out[: top.shape[0], : top.shape[1]] = top
     out[top.shape[0] :, : bottom.shape[1]] = bottom
     return out
+
+
+def caption_above(image: np.ndarray, text: str, size: int = 16) -> np.ndarray:
+    """`image` with a one-line caption strip on top (e.g. "image 1: ..." so a reader sees which image a
+    question's "first image" is)."""
+    strip = text_panel([(text, "bold", (255, 230, 120))], image.shape[1], size=size, pad=6)
+    return vstack(strip, image)

@@ -96,7 +96,7 @@ def run_group(task: GroupTask) -> dict[str, Any]:
         unit = Unit(uid, sidx, kind, key)
         stats["units"] += 1
         try:
-            sample = make_sample(recipe, unit, timer)
+            sample = make_sample(recipe, unit, timer, task.out_dir)
         except DropUnit as e:
             S.add_drop(stats, e.reason)
             continue
@@ -219,7 +219,9 @@ def run_plan(recipe: Recipe, ref: RecipeRef, out_dir: Path, workers: int = 1, ex
     if os.environ.get(FAULT_ENV) == "index":  # simulate dying half-way through writing the index
         (out_dir / "index.json.partial").write_bytes(b'{"shards": [')
         _fault("index")
-    index = write_index(out_dir, shards, {**fingerprint, "stats": total})
+    from refspatial_gen.run.splits import index_section
+
+    index = write_index(out_dir, shards, {**fingerprint, "stats": total, **index_section(recipe, out_dir, shards)})
     wall = time.time() - t_start
     stage = {k: round(sum(r["stage_seconds"].get(k, 0.0) for r in results), 3) for k in ("load", "graph", "qa", "write")}
     run_log = {

@@ -53,6 +53,13 @@ def _answer_frame(sample: Sample, qa: QAPair) -> Frame:
     raise KeyError(f"sample {sample.sample_id}: QA {qa.qa_id} refers to frame {want!r}, not in the sample")
 
 
+def question_frames(sample: Sample, qa: QAPair) -> list[Frame]:
+    """The frames a question is about, in the order the question names them ("the first image" is
+    `qa.frame_ids[0]`), which need not be the order the sample stores them in."""
+    by_id = {f.frame_id: f for f in sample.frames}
+    return [by_id[fid] for fid in qa.frame_ids if fid in by_id]
+
+
 def _graph_for(sample: Sample, frame: Frame) -> SceneGraph | None:
     for g in sample.graphs:
         if g.frame_id == frame.frame_id:
@@ -243,11 +250,11 @@ def render_preview(sample: Sample, qa_index: int) -> np.ndarray:
     """The overlay image (uint8 RGB) for `sample.qa[qa_index]`: frames side by side, text underneath."""
     qa = sample.qa[qa_index]
     ans_frame = _answer_frame(sample, qa)
-    frames = [f for f in sample.frames if not qa.frame_ids or f.frame_id in qa.frame_ids] or [ans_frame]
+    frames = question_frames(sample, qa) or [ans_frame]
     tiles, used = [], set()
-    for f in frames:
+    for k, f in enumerate(frames, 1):
         img, u = _draw_frame(sample, qa, f, f is ans_frame)
-        tiles.append(img)
+        tiles.append(draw.caption_above(img, f"image {k}: {f.frame_id}") if len(frames) > 1 else img)
         used |= u
     top = draw.hstack(tiles)
     width = max(top.shape[1], 640)

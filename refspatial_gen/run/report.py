@@ -86,7 +86,16 @@ def _steps_counts(d: dict[str, int]) -> list[tuple[str, int]]:
     return [(str(k), int(d.get(k, 0))) for k in keys]
 
 
-def derived(stats: dict[str, Any], run_log: dict[str, Any]) -> dict[str, Any]:
+def silent_families(stats: dict[str, Any], recipe_info: dict[str, Any] | None) -> list[str]:
+    """Families the recipe asks for (weight > 0) that produced no QA pair in the whole run.
+
+    Why: a family that never fires is invisible in a table of counts; e.g. `identify` needs a support
+    surface, which plain photos lack, so an image recipe that lists it silently gets none."""
+    fams = (recipe_info or {}).get("families") or {}
+    return sorted(f for f, w in fams.items() if float(w or 0) > 0 and not stats["by_family"].get(f))
+
+
+def derived(stats: dict[str, Any], run_log: dict[str, Any], recipe_info: dict[str, Any] | None = None) -> dict[str, Any]:
     """Figures computed from the inputs that the page shows (also stored in report.json)."""
     dropped = sum(stats["dropped"].values())
     units = int(stats.get("units") or 0)
@@ -97,6 +106,7 @@ def derived(stats: dict[str, Any], run_log: dict[str, Any]) -> dict[str, Any]:
         "qa_per_sample": round(stats["qa_pairs"] / stats["samples"], 3) if stats["samples"] else None,
         "samples_per_s": round(stats["samples"] / wall, 3) if wall > 0 else None,
         "answer_location": location_bias(stats["answer_heatmap"]),
+        "silent_families": silent_families(stats, recipe_info),
     }
 
 
@@ -238,10 +248,11 @@ def _fmt_rate(v: Any, unit: str = "/s") -> str:
     return "-" if v is None else f"{float(v):,.2f}{unit}"
 
 
-def summary_lines(stats: dict[str, Any], run_log: dict[str, Any] | None = None) -> list[str]:
+def summary_lines(stats: dict[str, Any], run_log: dict[str, Any] | None = None,
+                  recipe_info: dict[str, Any] | None = None) -> list[str]:
     """The header figures as plain text lines (what `stats` prints and the page's summary shows)."""
     run_log = run_log or {}
-    d = derived(stats, run_log)
+    d = derived(stats, run_log, recipe_info)
     lines = [f"samples     {stats['samples']:,}", f"QA pairs    {stats['qa_pairs']:,}"
              + (f"  ({d['qa_per_sample']} per sample)" if d["qa_per_sample"] is not None else "")]
     drop = f"dropped     {d['dropped_total']:,}"
@@ -252,6 +263,8 @@ def summary_lines(stats: dict[str, Any], run_log: dict[str, Any] | None = None) 
         lines.append(f"QA/s        {_fmt_rate(run_log.get('qa_per_s'), '')}   units/s {_fmt_rate(run_log.get('units_per_s'), '')}")
         lines.append(f"wall time   {float(run_log.get('wall_seconds') or 0):,.1f} s on {run_log.get('workers', '?')} "
                      f"worker(s), executor {run_log.get('executor', '?')}")
+    if d["silent_families"]:
+        lines.append(f"warning     families that produced no QA pair: {', '.join(d['silent_families'])}")
     loc = d["answer_location"]
     if loc["points"]:
         lines.append(f"answers     mean point ({loc['mean'][0]:.3f}, {loc['mean'][1]:.3f}), "
@@ -352,6 +365,14 @@ def render_html(report: dict[str, Any]) -> str:
 
     counts_section("QA pairs per relation", "qa_by_relation", _sorted_counts(stats["by_relation"]), "No relation was asked.")
     counts_section("QA pairs per question family", "qa_by_family", _sorted_counts(stats["by_family"]), "No QA pairs.")
+    if d.get("silent_families"):
+        parts.append(_section("Families that produced nothing",
+                              f"<p><b>{e(', '.join(d['silent_families']))}</b>: the recipe asks for "
+                              f"{'this family' if len(d['silent_families']) == 1 else 'these families'}, but no "
+                              "template found an instance in any sample. Typical causes: the templates need "
+                              "something this source lacks (e.g. <code>identify</code> and placement need a "
+                              "support surface, which plain photos do not have), or every candidate failed a check. "
+                              "Remove the family from the recipe or change the source.</p>"))
     counts_section("QA pairs per step count", "qa_by_steps", _steps_counts(stats["by_steps"]), "No QA pairs.")
     counts_section("QA pairs per source", "qa_by_source", _sorted_counts(stats["by_source"]), "No QA pairs.")
 
@@ -409,7 +430,7 @@ def build_report(stats: dict[str, Any], run_log: dict[str, Any], recipe_info: di
     """The report.json content (checks `stats` first)."""
     check_stats(stats)
     return {"report_version": REPORT_VERSION, "stats": stats, "run_log": dict(run_log), "recipe": dict(recipe_info),
-            "derived": derived(stats, run_log), "plots": dict(sorted((plots or {}).items()))}
+            "derived": derived(stats, run_log, recipe_info), "plots": dict(sorted((plots or {}).items()))}
 
 
 def write_report(out_dir: Path, stats: dict[str, Any], run_log: dict[str, Any], recipe_info: dict[str, Any]) -> Path:

@@ -25,7 +25,9 @@ def verify_dir(d: str | Path, max_failures: int = 1000) -> dict:
 
     problems = check_shards(Path(d))
     bad = {Path(p["file"]).name for p in problems}
-    out = verify_samples(_iter_trusted(d, bad))
+    from refspatial_gen.rewrite.verify import with_rewrite_checks
+
+    out = with_rewrite_checks(verify_samples, _iter_trusted(d, bad))
     out["shard_problems"] = problems
     out["failures"] = out["failures"][:max_failures]
     return out

@@ -1,8 +1,9 @@
-"""Camera poses per RefSpatial: pitch 30-60 degrees below horizontal, 0.3-0.8 m above the support,
-aimed at the objects; several views of one scene spread in azimuth for multi-view questions.
+"""Camera poses per RefSpatial: pitch 30-60 degrees below horizontal (`pitch_deg`), 0.3-0.8 m above the
+support (`camera_height`), aimed at the objects; several views of one scene spread in azimuth for
+multi-view questions.
 
-Room scenes use a standing viewpoint instead (eye 1.1-1.6 m above the floor, pitch 25-45 degrees), aimed
-at the furniture group, because 0.8 m above a table cannot show a room.
+Room scenes use a standing viewpoint (eye `room_eye_height`, 1.2-1.8 m above the floor) with the same
+pitch range, aimed at the focus furniture group, because 0.8 m above one table cannot show a room.
 """
 
 from __future__ import annotations
@@ -44,16 +45,15 @@ def sample_cameras(kind: str, target: np.ndarray, support_z: float, boxes: list[
     az0 = rng.uniform(-np.pi, np.pi) if kind == "tabletop" else rng.uniform(-np.pi / 2 - 0.5, -np.pi / 2 + 0.5)
     spread = np.deg2rad(float(cfg.get("view_spread_deg", 70)))
     lo_f, hi_f = cfg.get("fovy_deg", (45.0, 60.0))
+    pitch_rng = tuple(float(x) for x in cfg.get("pitch_deg", (30.0, 60.0)))
+    height_rng = tuple(float(x) for x in cfg.get("camera_height", (0.3, 0.8)))
+    eye_rng = tuple(float(x) for x in cfg.get("room_eye_height", (1.2, 1.8)))
     for v in range(n_views):
         best, best_score, valid = None, -1, 0
         for _ in range(5 * candidates):
             fovy = rng.uniform(lo_f, hi_f)
-            if kind == "tabletop":
-                pitch = np.deg2rad(rng.uniform(30, 60))
-                eye_z = support_z + rng.uniform(0.3, 0.8)
-            else:
-                pitch = np.deg2rad(rng.uniform(25, 45))
-                eye_z = rng.uniform(1.1, 1.6)
+            pitch = np.deg2rad(rng.uniform(*pitch_rng))
+            eye_z = support_z + rng.uniform(*height_rng) if kind == "tabletop" else rng.uniform(*eye_rng)
             az = az0 + (v * spread + rng.normal(0, 0.15) if v else rng.normal(0, 0.1))
             aim = target + np.r_[rng.normal(0, 0.06, 2), 0.0]
             if eye_z - aim[2] <= 0.05:

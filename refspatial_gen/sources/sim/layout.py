@@ -80,6 +80,8 @@ class SceneDesc:
     room_half: np.ndarray  # (hx, hy) of the floor area
     walls: bool
     appearance: dict[str, Any]
+    floor: bool = True  # False for single-object renders (asset sheets, texture checks)
+    lights: list = field(default_factory=list)  # lighting.Light, sampled after the layout
 
 
 def _outline(geo: AssetGeometry) -> np.ndarray:
@@ -109,9 +111,8 @@ class LayoutBuilder:
         self.objects: list[PlacedObject] = []
         self.statics: list[StaticBox] = []
         self.surfaces: list[Surface] = []
-        ext_ok = [n for n in catalog.names() if catalog.categories[n].builder == "external"
-                  and external_available(catalog.categories[n])]
-        self.external = ext_ok if cfg.get("external_prob", 0.0) > 0 else []
+        ext_ok = [n for n in catalog.external_names() if external_available(catalog.categories[n])]
+        self.external = ext_ok if (cfg.get("external_prob") or 0.0) > 0 else []
 
     # ------------------------------------------------------------------ furniture
     def add_table(self, sid: str, kind: str, name: str, cx: float, cy: float, hx: float, hy: float, h: float,
@@ -130,7 +131,7 @@ class LayoutBuilder:
     # ------------------------------------------------------------------ objects
     def pick_category(self, scale: str, want_inside: bool = False) -> Category:
         rng = self.rng
-        if self.external and scale == "tabletop" and not want_inside and rng.random() < self.cfg.get("external_prob", 0.0):
+        if self.external and scale == "tabletop" and not want_inside and rng.random() < (self.cfg.get("external_prob") or 0.0):
             return self.cat.categories[self.external[int(rng.integers(len(self.external)))]]
         same = [o.category for o in self.objects if o.category.scale == scale and o.category.builder != "external"
                 and (o.category.fits_inside or not want_inside)]
@@ -279,85 +280,21 @@ class LayoutBuilder:
 
 
 TABLE_TINTS = [(1.0, 0.85, 0.7), (0.75, 0.55, 0.4), (0.55, 0.38, 0.25), (0.95, 0.95, 0.95), (0.35, 0.35, 0.37), (0.9, 0.8, 0.65)]
+FABRICS = [(0.45, 0.5, 0.58), (0.6, 0.55, 0.48), (0.35, 0.4, 0.33), (0.55, 0.25, 0.22), (0.3, 0.3, 0.32), (0.75, 0.72, 0.66)]
 
 
-def _appearance(rng: np.random.Generator) -> dict[str, Any]:
-    tint = np.array(TABLE_TINTS[int(rng.integers(len(TABLE_TINTS)))]) * rng.uniform(0.9, 1.1)
+def _pick(rng: np.random.Generator, options: list) -> np.ndarray:
+    return np.array(options[int(rng.integers(len(options)))], float)
+
+
+def appearance(rng: np.random.Generator) -> dict[str, Any]:
+    """Random looks of the room and furniture (lights are sampled separately, see lighting.py)."""
+    tint = _pick(rng, TABLE_TINTS) * rng.uniform(0.9, 1.1)
     return {
         "table_tex": int(rng.integers(4)), "table_tint": np.clip(tint, 0, 1),
-        "floor_tex": int(rng.integers(3)), "floor_rgb1": rng.uniform(0.35, 0.8) * np.array(TABLE_TINTS[int(rng.integers(len(TABLE_TINTS)))]), "floor_rgb2": rng.uniform(0.2, 0.7, 3),
-        "wall_rgb": rng.uniform(0.65, 0.95, 3), "counter_rgb": np.array(TABLE_TINTS[int(rng.integers(len(TABLE_TINTS)))]) * rng.uniform(0.6, 1.0),
-        "light_dir": [float(rng.uniform(-0.6, 0.6)), float(rng.uniform(-0.6, 0.6)), -1.0],
-        "light_diffuse": float(rng.uniform(0.45, 0.8)), "ambient": float(rng.uniform(0.25, 0.45)),
-        "light_warm": rng.uniform(0.9, 1.0, 3),
+        "floor_tex": int(rng.integers(3)), "floor_rgb1": rng.uniform(0.35, 0.8) * _pick(rng, TABLE_TINTS),
+        "wall_rgb": rng.uniform(0.65, 0.95, 3), "counter_rgb": _pick(rng, TABLE_TINTS) * rng.uniform(0.6, 1.0),
+        "cabinet_rgb": np.clip(_pick(rng, TABLE_TINTS) * rng.uniform(0.7, 1.05), 0, 1),
+        "sofa_rgb": _pick(rng, FABRICS) * rng.uniform(0.85, 1.1), "bedding_rgb": np.clip(rng.uniform(0.75, 1.0, 3), 0, 1),
+        "ambient": float(rng.uniform(0.2, 0.35)), "headlight": 0.15,
     }
-
-
-def tabletop_layout(catalog: Catalog, rng: np.random.Generator, cfg: dict[str, Any], n_objects: int) -> SceneDesc:
-    b = LayoutBuilder(catalog, rng, cfg)
-    hx, hy, h = rng.uniform(0.4, 0.8), rng.uniform(0.3, 0.5), rng.uniform(0.72, 0.78)
-    table = b.add_table("table", "table", "the table", 0.0, 0.0, hx, hy, h)
-    b.fill([table], n_objects)
-    return SceneDesc("tabletop", b.objects, b.statics, b.surfaces, ["table"], rng.uniform(2.0, 3.0, 2), True,
-                     _appearance(rng))
-
-
-def room_layout(catalog: Catalog, rng: np.random.Generator, cfg: dict[str, Any], n_objects: int) -> SceneDesc:
-    """A room corner: floor, two walls, a table with chairs, maybe a counter and a shelf, floor objects."""
-    b = LayoutBuilder(catalog, rng, cfg)
-    rx, ry = rng.uniform(1.8, 2.5), rng.uniform(1.8, 2.5)
-    floor = Surface("floor", "floor", "the floor", np.zeros(2), np.array([rx, ry]), 0.0, 0.0)
-    b.surfaces.append(floor)
-    thx, thy, th = rng.uniform(0.5, 0.8), rng.uniform(0.35, 0.5), rng.uniform(0.72, 0.78)
-    tcx, tcy = rng.uniform(-0.4, 0.4), rng.uniform(-0.2, 0.4)
-    table = b.add_table("table", "table", "the table", tcx, tcy, thx, thy, th)
-    floor.fps.append(table.rect().buffer(0.02))
-    top_surfaces = [table]
-    if rng.random() < 0.6:  # counter along the back wall
-        cl = rng.uniform(0.6, 1.1)
-        cx = float(np.clip(tcx + rng.uniform(-1, 1), -rx + cl + 0.05, rx - cl - 0.05))
-        c = b.add_table("counter", "counter", "the counter", cx, ry - 0.3, cl, 0.3, 0.9, legs=False)
-        b.statics.append(StaticBox("counter_body", np.array([cx, ry - 0.3, 0.44]), np.array([cl, 0.29, 0.44]), "counter"))
-        floor.fps.append(c.rect().buffer(0.02))
-        top_surfaces.append(c)
-    if rng.random() < 0.5:  # shelf unit against the left wall, three boards
-        sw, sd = rng.uniform(0.4, 0.6), 0.18
-        sy = float(rng.uniform(-ry + sw + 0.1, ry - sw - 0.7))
-        levels = [0.05, 0.42, 0.8]
-        for i, z in enumerate(levels):
-            ttop = z + 0.02
-            nm = ["the bottom shelf", "the middle shelf", "the top shelf"][i]
-            s = b.add_table(f"shelf{i}", "shelf", nm, -rx + sd + 0.01, sy, sd, sw, ttop, legs=False, max_height=0.34 if i < 2 else 0.6,
-                            look="shelf")
-            top_surfaces.append(s)
-        for sgn in (-1, 1):
-            b.statics.append(StaticBox(f"shelf_side{sgn}", np.array([-rx + sd + 0.01, sy + sgn * (sw + 0.01), 0.6]), np.array([sd, 0.01, 0.6]), "shelf"))
-        floor.fps.append(shp_box(-rx, sy - sw - 0.05, -rx + 2 * sd + 0.05, sy + sw + 0.05))
-    # chairs around the table, facing it (some turned away a little)
-    n_room = 0
-    for side in rng.permutation(4)[: int(rng.integers(1, 4))]:
-        cat = catalog.categories["chair"] if "chair" in catalog.categories else None
-        if cat is None:
-            break
-        geo, color, rgb, acc, mat = b.make(cat)
-        d = np.array([[1, 0], [-1, 0], [0, 1], [0, -1]][side], float)
-        off = (thx if side < 2 else thy) + 0.27 + rng.uniform(0.0, 0.2)
-        xy = np.array([tcx, tcy]) + d * off + (np.array([0, rng.uniform(-0.3, 0.3)]) if side < 2 else np.array([rng.uniform(-0.4, 0.4), 0]))
-        yaw = float(np.arctan2(-d[1], -d[0]) + rng.normal(0, 0.15))
-        fp = affinity.translate(footprint(geo, yaw), xy[0], xy[1])
-        if not floor.rect(0.05).contains(fp) or any(fp.distance(o) < CLEARANCE for o in floor.fps):
-            continue
-        floor.fps.append(fp)
-        lo = geo.bounds()[0]
-        b._add(cat, geo, color, rgb, acc, mat, np.array([xy[0], xy[1], -lo[2] + DROP_GAP]), yaw, "floor", fp)
-        n_room += 1
-    k_floor = int(rng.integers(1, 4))
-    for _ in range(k_floor):
-        if b.place_on_surface(floor, b.pick_category("room"), tries=20) is not None:
-            n_room += 1
-    b.fill(top_surfaces, max(1, n_objects - n_room))
-    statics = b.statics
-    return SceneDesc("room", b.objects, statics, b.surfaces, ["table"], np.array([rx, ry]), True, _appearance(rng))
-
-
-LAYOUTS = {"tabletop": tabletop_layout, "room": room_layout}

@@ -116,3 +116,12 @@ def render_views(sim: SimModel, cams: list[Camera]) -> list[RenderOut]:
         return outs
     finally:
         ctx.free()
+
+
+class MujocoRenderer:
+    """The fast path: MuJoCo's rasteriser on the settled model (one EGL context per process)."""
+
+    name = "mujoco"
+
+    def render(self, scene, cams: list[Camera]) -> list[RenderOut]:
+        return render_views(scene.sim, cams)

@@ -1,0 +1,1 @@
+"""Evaluation of model predictions on a refspatial-gen dataset (`refspatial-gen eval`, docs/eval.md)."""

@@ -1,0 +1,141 @@
+"""`export --format refspatial-bench`: the raw layout of RefSpatial-Bench, so RoboRefer's own evaluation
+scripts (`Evaluation/test_benchmark.py`, `Evaluation/summarize_acc.py`) run on it unchanged.
+
+OUT/
+  Location/  image/<id>.png  mask/<id>.png  question.json
+  Placement/ ...
+  Unseen/    ...
+
+question.json is a JSON list of {id, object, prompt, suffix, rgb_path, mask_path, category, step} (the
+benchmark's fields; `qa_id` is added so results can be traced back). `id` counts from 0 in each folder;
+`prompt` is the question without its output-format sentence; `suffix` is RoboRefer's output-format
+instruction (a list of tuples of normalised coordinates); `object` is the target's description taken from
+the prompt; `category` is "location" or "placement"; `step` is the QA pair's step count. Images are RGB
+PNG; masks are 8-bit single-channel PNG, 255 on the target's visible mask (Location) or on the free-space
+region's visible pixels (Placement), 0 elsewhere, the image's size.
+
+Which QA pairs: point answers (locate, identify) go to Location, free-space answers (placement) to
+Placement, from the requested splits (default: test); QA pairs of the `unseen` split go to Unseen. Every
+item is checked the benchmark's way before it is written: the gold point, read as RoboRefer's script reads
+it (`int(x * W)`, `int(y * H)`), must fall inside the mask.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+
+from refspatial_gen.core.mask import RLE
+from refspatial_gen.rewards.gold import build_gold
+from refspatial_gen.run.splits import keep_sample, sample_split, splits_of_samples
+from refspatial_gen.shards.format import RawSample
+
+SUFFIX = ("Your answer should be formatted as a list of tuples, i.e. [(x1, y1)], where each tuple contains the x and "
+          "y coordinates of a point satisfying the conditions above. The coordinates should be between 0 and 1, "
+          "indicating the normalized pixel locations of the points in the image.")
+TASKS = {"points": ("Location", "location"), "region": ("Placement", "placement")}
+_LEAD = re.compile(r"^(?:please\s+)?(?:point\s+(?:out|to|at)|locate|find|show\s+me|identify|mark)\s+(?P<obj>.+?)[.?!]?$", re.I)
+_WHERE = re.compile(r"^where\s+is\s+(?P<obj>.+?)\?$", re.I)
+
+
+def point_instructions() -> list[str]:
+    """The output-format sentences the templates append to point questions (qa.lexicon), unescaped."""
+    from refspatial_gen.qa import lexicon
+
+    return [s.replace("\\[", "[").replace("\\]", "]") for s in lexicon.POINT_INSTRUCTIONS]
+
+
+def split_prompt(question: str) -> tuple[str, bool]:
+    """(question without its trailing output-format sentence, whether one was found). Whitespace is
+    ignored in the comparison: the text tidy step may drop a space before punctuation."""
+    q = question.strip()
+    keep = [i for i, c in enumerate(q) if not c.isspace()]
+    dense = "".join(q[i] for i in keep)
+    for s in point_instructions():
+        tail = re.sub(r"\s+", "", s)
+        if tail and dense.endswith(tail):
+            return q[: keep[len(dense) - len(tail)]].strip(), True
+    return q, False
+
+
+def object_of(prompt: str, qa: dict) -> str:
+    """The target's description: the object of the prompt's imperative ("Point to X." -> X), else for
+    free space the key step naming it, else the prompt without a trailing "Point to it."."""
+    for rx in (_LEAD, _WHERE):
+        m = rx.match(prompt)
+        if m and not re.search(r"[.?!]\s+[A-Z]", m.group("obj")):  # one sentence ("1. left of" is fine)
+            return m.group("obj").strip()
+    if (qa.get("answer_struct") or {}).get("kind") == "region":
+        for k in reversed(qa.get("key_steps") or []):
+            if k["phrase"].startswith("the free space"):
+                return k["phrase"]
+    return re.sub(r"\s*Point to it\.$", "", prompt).strip()
+
+
+def benchmark_hit(point: list[float], mask: np.ndarray) -> bool:
+    """RoboRefer's summarize_acc rule for one normalised point: int(x*W), int(y*H) inside the mask."""
+    H, W = mask.shape
+    x, y = int(point[0] * W), int(point[1] * H)
+    return 0 <= x < W and 0 <= y < H and bool(mask[y, x])
+
+
+def _png(arr: np.ndarray) -> bytes:
+    import cv2
+
+    ok, buf = cv2.imencode(".png", arr, [cv2.IMWRITE_PNG_COMPRESSION, 3])
+    if not ok:
+        raise ValueError("PNG encoding failed")
+    return buf.tobytes()
+
+
+def export_refspatial_bench(raws: Iterable[RawSample], out: Path | str, *,
+                            splits: Iterable[str] | None = ("test",)) -> dict:
+    """Write the three task folders; returns counts per task and how many prompts had no known format sentence."""
+    out = Path(out)
+    scene_map = splits_of_samples(raws)
+    wanted = None if splits is None else tuple(splits)
+    items: dict[str, list[dict]] = {"Location": [], "Placement": [], "Unseen": []}
+    no_instruction = 0
+    for raw in raws:
+        h = raw.header
+        frame_ids = list(h["frame_ids"])
+        metas = [raw.frame_meta(v) for v in range(int(h["views"]))]
+        split = sample_split(scene_map, metas, h["sample_id"])
+        unseen = split == "unseen"
+        if not unseen and not keep_sample(split, wanted):
+            continue
+        graphs = {g["frame_id"]: g for g in raw.graphs_json()}
+        cache: dict[int, tuple[np.ndarray, np.ndarray | None]] = {}
+        for qa in raw.qa_json():
+            kind = (qa.get("answer_struct") or {}).get("kind")
+            if kind not in TASKS or len(qa["frame_ids"]) != 1 or qa["frame_ids"][0] not in frame_ids:
+                continue
+            v = frame_ids.index(qa["frame_ids"][0])
+            if v not in cache:
+                cache[v] = (raw.rgb(v), raw.depth(v) if any(
+                    (q.get("answer_struct") or {}).get("kind") == "region" for q in raw.qa_json()) else None)
+            rgb, depth = cache[v]
+            gold = build_gold(qa, metas[v], graphs.get(metas[v]["frame_id"]), depth)
+            mask = RLE.from_json(gold.mask).decode()
+            if not benchmark_hit(gold.points[0], mask):
+                raise ValueError(f"{qa['qa_id']}: the gold point {gold.points[0]} misses its own mask the benchmark's way")
+            folder, category = ("Unseen", TASKS[kind][1]) if unseen else TASKS[kind]
+            prompt, found = split_prompt(qa["question"])
+            no_instruction += not found
+            i = len(items[folder])
+            d = out / folder
+            (d / "image").mkdir(parents=True, exist_ok=True)
+            (d / "mask").mkdir(parents=True, exist_ok=True)
+            (d / "image" / f"{i}.png").write_bytes(_png(np.ascontiguousarray(rgb[..., ::-1])))
+            (d / "mask" / f"{i}.png").write_bytes(_png(mask.astype(np.uint8) * 255))
+            items[folder].append({"id": i, "object": object_of(prompt, qa), "prompt": prompt, "suffix": SUFFIX,
+                                  "rgb_path": f"image/{i}.png", "mask_path": f"mask/{i}.png", "category": category,
+                                  "step": int(qa["steps"]), "qa_id": qa["qa_id"]})
+    for folder, rows in items.items():
+        if rows:
+            (out / folder / "question.json").write_text(json.dumps(rows, ensure_ascii=False, indent=1))
+    return {**{k.lower(): len(v) for k, v in items.items()}, "prompts_without_format_sentence": no_instruction}
