@@ -12,7 +12,7 @@ from refspatial_gen.core.errors import DropUnit
 from refspatial_gen.perception.cache import array_hash
 from tests.helpers.perception_fakes import FakeDetector, FakeSegmenter, install, model_folder, register_depth_estimator
 
-N_IMAGES = 12
+N_IMAGES = 24
 COMMON = {"depth": {"estimator": "geometric", "max_size_ratio": 3.0, "size_fallback": True}, "min_objects": 2}
 
 
@@ -38,7 +38,7 @@ def coco(shared_data, tmp_path, monkeypatch):
         for a in rec.annotations:
             m, _ = annotation_mask(a, rec, rgb.shape[1], rgb.shape[0])
             dets[h].append((a.bbox, a.category, 0.9))
-            masks[(h, tuple(round(x, 1) for x in np.clip(a.bbox, 0, [rgb.shape[1], rgb.shape[0]] * 2)))] = m
+            masks[(h, tuple(float(x) for x in np.clip(a.bbox, 0, [rgb.shape[1], rgb.shape[0]] * 2)))] = m
     det, seg = FakeDetector(dets), FakeSegmenter(masks)
     model_folder(tmp_path / "models", "gd", "grounding-dino")
     model_folder(tmp_path / "models", "sam", "sam")
@@ -80,7 +80,9 @@ def test_coco_boxes_through_perception_give_coco_objects(coco):
         a = _load(src, f"image:{coco_id}", {**COMMON, "format": "coco"})
         p = _load(photos, f"image:{stem}", {**COMMON, "perception": perception})
         if isinstance(a, DropUnit) or isinstance(p, DropUnit):
-            assert isinstance(a, DropUnit) and isinstance(p, DropUnit) and a.reason == p.reason, (stem, a, p)
+            assert isinstance(a, DropUnit) and isinstance(p, DropUnit), (stem, a, p)
+            # a photo without annotations is, to a detector, a photo without detections
+            assert a.reason == p.reason or (p.reason == "no_detections" and "0 usable" in a.detail), (stem, a, p)
             continue
         compared += 1
         same += _objects(a) == _objects(p)

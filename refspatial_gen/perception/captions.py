@@ -28,10 +28,15 @@ ORDER_MARGIN_M = 0.10  # metres, between neighbours near to far
 
 
 def colour_of(rgb: np.ndarray, mask: np.ndarray) -> str | None:
-    """The colour word of the pixels under `mask` (None when inconclusive): the graph's own namer."""
+    """The colour word of the pixels under `mask` (None when inconclusive): the graph's own namer, on the
+    mask's bounding box as the scene graph crops it (the namer's edge erosion depends on the crop)."""
     from refspatial_gen.graph.colour import colour_word, mask_hsv_from_rgb
 
-    return colour_word(mask_hsv_from_rgb(rgb, mask))[0]
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    if len(rows) == 0:
+        return None
+    y0, y1, x0, x1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+    return colour_word(mask_hsv_from_rgb(rgb[y0:y1, x0:x1], mask[y0:y1, x0:x1]))[0]
 
 
 def _separated(values: list[float], margin: float) -> bool:
