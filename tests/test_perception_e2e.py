@@ -101,12 +101,28 @@ def test_photos_end_to_end(random_models, photos, tmp_path, monkeypatch):
 def test_photos_one_and_two_workers_write_the_same_bytes(random_models, photos, tmp_path, monkeypatch):
     monkeypatch.setenv("REFSPATIAL_MODELS", str(random_models))
     recipe = _recipe(tmp_path, "photos.yaml", {"vocabulary: coco": "vocabulary: [cup, chair, person]",
-                                               "max_detections: 30": "max_detections: 5",
+                                               "max_detections: 30": "max_detections: 5", "min_objects: 2": "min_objects: 1",
                                                "samples_per_shard: 16": "samples_per_shard: 3"})
     monkeypatch.setenv("REFSPATIAL_CACHE", str(tmp_path / "cache1"))
-    _shards(recipe, photos, tmp_path / "w1", 8, workers=1)
+    a = _shards(recipe, photos, tmp_path / "w1", 16, workers=1)
     monkeypatch.setenv("REFSPATIAL_CACHE", str(tmp_path / "cache2"))  # nothing cached: the models run again
-    _shards(recipe, photos, tmp_path / "w2", 8, workers=2)
+    _shards(recipe, photos, tmp_path / "w2", 16, workers=2)
+    assert a["qa_pairs"] > 0
+    assert output_digest(tmp_path / "w1") == output_digest(tmp_path / "w2")
+
+
+def test_trajectory_one_and_two_workers_write_the_same_bytes(random_models, shared_data, tmp_path, monkeypatch):
+    """Each worker detects and fuses the whole sequence itself: the fused objects must still agree."""
+    monkeypatch.setenv("REFSPATIAL_MODELS", str(random_models))
+    recipe = _recipe(tmp_path, "scan_perception.yaml", {"vocabulary: lvis-frequent": "vocabulary: [sofa, table, lamp]",
+                                                        "max_detections: 30": "max_detections: 4",
+                                                        "samples_per_shard: 16": "samples_per_shard: 2"})
+    inp = shared_data / "open3d_rgbd" / "icl_nuim_livingroom"
+    monkeypatch.setenv("REFSPATIAL_CACHE", str(tmp_path / "cache1"))
+    a = _shards(recipe, inp, tmp_path / "w1", 5, workers=1)
+    monkeypatch.setenv("REFSPATIAL_CACHE", str(tmp_path / "cache2"))
+    _shards(recipe, inp, tmp_path / "w2", 5, workers=2)
+    assert a["qa_pairs"] >= 30
     assert output_digest(tmp_path / "w1") == output_digest(tmp_path / "w2")
 
 
