@@ -11,9 +11,10 @@ most one detection per frame (two boxes in one frame are two objects, as NMS lef
 starts an object. After the last frame, objects of one category whose voxels overlap by half of the
 smaller one are merged (an object first seen from two sides that never met). Objects seen in fewer than
 `min_views` frames or with fewer than `min_points` voxels are dropped, by reason. Each object keeps its
-largest 26-connected voxel component (floaters from depth edges go) and gets a box: with gravity known, a
-z-up box from the minimum-area rectangle of its footprint and the 1st-99th percentile of heights;
-otherwise the principal axes.
+largest 26-connected voxel component (floaters from depth edges go) and gets a box measured on the lifted
+points of those voxels (not on voxel centres: extents on a grid would make distances between objects come
+in exact steps that tie with the scene graph's margins): with gravity known, a z-up box from the
+minimum-area rectangle of its footprint and the 1st-99th percentile of heights; otherwise the principal axes.
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ class Observation:
     codes: np.ndarray  # packed voxel codes of its lifted points (pack)
     mask: np.ndarray | None = None
     bbox: tuple[float, float, float, float] | None = None
+    points: np.ndarray | None = None  # the lifted points themselves (N, 3): boxes are measured on them
 
 
 @dataclass
@@ -50,9 +52,10 @@ class FusedObject:
     observations: list[Observation] = field(default_factory=list)
 
 
-def lift(mask: np.ndarray, depth: np.ndarray, cam: Camera, voxel: float, max_points: int = MAX_POINTS) -> np.ndarray:
-    """Packed voxel codes of a mask's pixels with depth, cleaned as the module docstring says (at most
-    `max_points` pixels, every k-th in row order, so a large mask costs what a small one does)."""
+def lift(mask: np.ndarray, depth: np.ndarray, cam: Camera, voxel: float, max_points: int = MAX_POINTS
+         ) -> tuple[np.ndarray, np.ndarray]:
+    """(packed voxel codes, world points) of a mask's pixels with depth, cleaned as the module docstring
+    says (at most `max_points` pixels, every k-th in row order, so a large mask costs what a small one does)."""
     import cv2
 
     m = cv2.erode(mask.astype(np.uint8), np.ones((2 * ERODE_PX + 1,) * 2, np.uint8)).astype(bool)
@@ -60,7 +63,7 @@ def lift(mask: np.ndarray, depth: np.ndarray, cam: Camera, voxel: float, max_poi
         m = mask.astype(bool)
     ys, xs = np.nonzero(m & (depth > 0))
     if len(ys) == 0:
-        return np.zeros(0, np.int64)
+        return np.zeros(0, np.int64), np.zeros((0, 3))
     step = int(np.ceil(len(ys) / max_points))
     ys, xs = ys[::step], xs[::step]
     z = depth[ys, xs].astype(np.float64)
@@ -68,7 +71,7 @@ def lift(mask: np.ndarray, depth: np.ndarray, cam: Camera, voxel: float, max_poi
     mad = float(np.median(np.abs(z - med)))
     keep = np.abs(z - med) <= max(0.05, 3.0 * 1.4826 * mad)
     pts = cam.cam_to_world(cam.backproject(xs[keep] + 0.5, ys[keep] + 0.5, z[keep]))
-    return pack(voxel_keys(pts, voxel))
+    return pack(voxel_keys(pts, voxel)), pts
 
 
 def voxel_keys(pts: np.ndarray, voxel: float) -> np.ndarray:
@@ -210,7 +213,9 @@ def box_of(points: np.ndarray, gravity_known: bool) -> Box3D:
 
 def finish(objects: list[FusedObject], voxel: float, min_views: int, min_points: int,
            gravity_known: bool) -> tuple[list[tuple[FusedObject, Box3D]], dict[str, int]]:
-    """Kept objects with their boxes (ordered by label, then position) and drop counts by reason."""
+    """Kept objects with their boxes (ordered by label, then position) and drop counts by reason. Boxes are
+    measured on the lifted points of the kept voxels (voxel centres would put every extent on the grid,
+    so distances between objects would come in exact steps and tie with the scene graph's margins)."""
     drops: Counter = Counter()
     out = []
     for obj in objects:
@@ -221,6 +226,12 @@ def finish(objects: list[FusedObject], voxel: float, min_views: int, min_points:
         if len(keys) < min_points:
             drops["fusion_too_few_points"] += 1
             continue
-        out.append((obj, box_of((keys + 0.5) * voxel, gravity_known)))
+        pts = [o.points for o in obj.observations if o.points is not None and len(o.points)]
+        if pts:
+            allp = np.concatenate(pts)
+            pts_kept = allp[np.isin(pack_unsorted(voxel_keys(allp, voxel)), pack(keys))]
+        else:
+            pts_kept = (keys + 0.5) * voxel
+        out.append((obj, box_of(pts_kept, gravity_known)))
     out.sort(key=lambda x: (x[0].label, tuple(np.round(x[1].center, 4))))
     return out, dict(sorted(drops.items()))

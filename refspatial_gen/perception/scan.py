@@ -78,9 +78,9 @@ def _fused(reader_cls: type, root: str, seq: str, single: str | None, base_json:
             continue
         for k, d in enumerate(r.detections):
             m = r.masks[k] if r.masks is not None else _box_mask(d.box, v.depth.shape)
-            codes = fusion.lift(m, v.depth, v.camera, fz["voxel"])
+            codes, pts = fusion.lift(m, v.depth, v.camera, fz["voxel"])
             if len(codes):
-                obs.append(fusion.Observation(f, d.label, d.score, codes, m, d.box))
+                obs.append(fusion.Observation(f, d.label, d.score, codes, m, d.box, pts))
     known = bool(views[0].camera.gravity_known)
     objs, drops = fusion.finish(fusion.associate(obs, fz["voxel"], fz["match_overlap"]), fz["voxel"],
                                 fz["min_views"], fz["min_points"], known)
