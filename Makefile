@@ -35,10 +35,11 @@ $(STAMP): pyproject.toml
 	@touch $@
 
 # the tests also need the optional extras: Ray (scale-out), torch + transformers + onnxruntime (depth models),
-# trl (the reward adapters run inside a real GRPOTrainer), sentencepiece (SigLIP tokenizers, perception)
+# trl (the reward adapters run inside a real GRPOTrainer), HF datasets + pyarrow (Parquet export),
+# sentencepiece (SigLIP tokenizers, perception)
 $(TEST_STAMP): $(STAMP)
-	@echo "installing test extras (pytest, hypothesis, ray, torch CPU, transformers, onnxruntime, trl, coacd, sentencepiece)"
-	@$(BIN)/python -m pip install -q -e '.[test,ray,depth,dev,rl,assets,perception]'
+	@echo "installing test extras (pytest, hypothesis, ray, torch CPU, transformers, onnxruntime, trl, coacd, datasets, sentencepiece)"
+	@$(BIN)/python -m pip install -q -e '.[test,ray,depth,dev,rl,assets,datasets,perception]'
 	@rm -f $(VENV)/.installed-test-*
 	@touch $@
 
