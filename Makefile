@@ -10,6 +10,7 @@ OUT ?= out/shards/default
 SCENES ?=
 WORKERS ?= 2
 PYTEST_ARGS ?=
+BENCH_ARGS ?=
 export MUJOCO_GL ?= egl
 export PYOPENGL_PLATFORM ?= egl
 
@@ -34,10 +35,11 @@ $(STAMP): pyproject.toml
 	@touch $@
 
 # the tests also need the optional extras: Ray (scale-out), torch + transformers + onnxruntime (depth models),
-# trl (the reward adapters run inside a real GRPOTrainer), HF datasets + pyarrow (Parquet export)
+# trl (the reward adapters run inside a real GRPOTrainer), HF datasets + pyarrow (Parquet export),
+# sentencepiece (SigLIP tokenizers, perception)
 $(TEST_STAMP): $(STAMP)
-	@echo "installing test extras (pytest, hypothesis, ray, torch CPU, transformers, onnxruntime, trl, coacd, datasets)"
-	@$(BIN)/python -m pip install -q -e '.[test,ray,depth,dev,rl,assets,datasets]'
+	@echo "installing test extras (pytest, hypothesis, ray, torch CPU, transformers, onnxruntime, trl, coacd, datasets, sentencepiece)"
+	@$(BIN)/python -m pip install -q -e '.[test,ray,depth,dev,rl,assets,datasets,perception]'
 	@rm -f $(VENV)/.installed-test-*
 	@touch $@
 
@@ -81,7 +83,7 @@ reliability: setup-test
 	$(BIN)/python scripts/reliability.py --write-doc
 
 bench: setup-test $(if $(REWRITE),setup-rewrite)
-	$(BIN)/python -m refspatial_gen.bench $(if $(REWRITE),--rewrite)
+	$(BIN)/python -m refspatial_gen.bench $(if $(REWRITE),--rewrite) $(BENCH_ARGS)
 
 preview: setup
 	$(BIN)/refspatial-gen preview $(OUT) --out out/preview

@@ -34,6 +34,7 @@ COMMAND_MODULES = [
     "refspatial_gen.cli.eval",
     "refspatial_gen.cli.audit",
     "refspatial_gen.cli.rewrite",
+    "refspatial_gen.cli.perception",
 ]
 DEBUG_ENV = "REFSPATIAL_DEBUG"
 

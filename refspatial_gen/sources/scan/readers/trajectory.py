@@ -239,12 +239,16 @@ class TrajectoryReader:
         cam = camera_from_K(K, W, H, pose, "center", gravity_known=False)
         box_file = config.get("boxes_file") or (seq_dir / "boxes.json" if (seq_dir / "boxes.json").is_file() else None)
         boxes = load_box_file(Path(box_file)) if box_file else []
+        pmeta: dict[str, Any] = {}
+        if not boxes and config.get("perception"):  # no box file: objects from local models (docs/perception.md)
+            from refspatial_gen.perception.scan import fused_boxes
+            boxes, pmeta = fused_boxes(type(self), root, seq, view_id, f["pose"] is not None, config)
         scene = seq_dir.name
         view = ScanView("rgbd_trajectory", scene, view_id if seq != "." else fid, rgb, depth, cam, boxes, "unknown",
                         boxes_per_frame=False,
                         meta={"intrinsics_source": info["intrinsics_source"], "depth_encoding": f["encoding"],
                               "pose_source": "identity" if f["pose"] is None else "trajectory",
-                              "layout": info["layout"], "has_boxes": bool(boxes)})
+                              "layout": info["layout"], "has_boxes": bool(boxes), **pmeta})
         frames_key = (str(seq_dir), json.dumps(sorted(info["frames"]))) if f["pose"] is not None else None
         return level_views(view, None, lambda: _scene_points(self, str(root), seq, fid, config, frames_key))
 
