@@ -10,6 +10,7 @@ temporary folder with a copy of the shipped templates beside it, and checked wit
 from __future__ import annotations
 
 import copy
+import json
 import math
 import os
 import shutil
@@ -21,7 +22,7 @@ import yaml
 from relrun import REPO, Case
 
 RECIPES = sorted(p for p in (REPO / "recipes").glob("*.yaml"))
-FREE_FORM = ("families", "layouts")  # mappings whose keys are names the user chooses (a typo is a new name)
+FREE_FORM = ("families", "layouts", "thresholds")  # mappings whose keys are names the user chooses (a typo is a new name)
 REQUIRED = {("sources",), ("sources", 0, "kind"), ("qa", "families")}
 MODEL = "models/depth-anything-v2-small"
 
@@ -30,11 +31,37 @@ def _prepare(tmp: Path, data: Any, text: str | None = None) -> Path:
     """The recipe (and a copy of the shipped templates beside it) in `tmp`; returns the recipe path."""
     shutil.copytree(REPO / "recipes" / "templates", tmp / "templates")
     (tmp / MODEL).mkdir(parents=True)
+    for name, config in _perception_models(data):  # the local model folders a perception recipe names
+        folder = tmp / "models" / name
+        folder.mkdir(parents=True, exist_ok=True)
+        (folder / "config.json").write_text(json.dumps(config))
     p = tmp / "recipe.yaml"
     if text is None:
         text = yaml.safe_dump(data, sort_keys=False, default_flow_style=False)
     p.write_text(text) if isinstance(text, str) else p.write_bytes(text)
     return p
+
+
+PERCEPTION_CONFIGS = {  # the config.json a save_pretrained folder of each part's default family holds
+    "detector": {"model_type": "grounding-dino"}, "segmenter": {"model_type": "sam"},
+    "depth": {"model_type": "depth_anything", "depth_estimation_type": "metric"},
+}
+
+
+def _perception_models(data: Any) -> list[tuple[str, dict]]:
+    """(model name, config.json) for each part of a source's `perception:` mapping that names a plain model
+    (mutated values of other types are skipped: those mutations must fail on their own)."""
+    out: list[tuple[str, dict]] = []
+    sources = data.get("sources") if isinstance(data, dict) else None
+    for s in sources if isinstance(sources, list) else []:
+        cfg = s.get("config") if isinstance(s, dict) else None
+        perception = cfg.get("perception") if isinstance(cfg, dict) else None
+        for part, config in PERCEPTION_CONFIGS.items():
+            sec = perception.get(part) if isinstance(perception, dict) else None
+            name = sec.get("model") if isinstance(sec, dict) else None
+            if isinstance(name, str) and name and "/" not in name and not name.startswith("."):
+                out.append((name, config))
+    return out
 
 
 def _baseline(path: Path) -> dict:

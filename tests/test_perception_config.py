@@ -45,6 +45,10 @@ def test_problems_are_messages(tmp_path):
     assert "must be <= 1" in check_perception({**base, "detector": {"model": "gd", "threshold": 2.0}})
     assert "vocabulary" in check_perception({**base, "detector": {"model": "gd", "vocabulary": "imagenet"}})
     assert "intrinsics" in check_perception({**base, "intrinsics": ["exif", "lidar"]})
+    for bad in ("wide", True, 1.5, [0.3]):  # per-category scores were not checked before (a string ran)
+        msg = check_perception({**base, "detector": {"model": "gd", "thresholds": {"person": bad}}})
+        assert msg and "detector.thresholds.person" in msg, bad
+    assert check_perception({**base, "detector": {"model": "gd", "thresholds": {"person": 0.5}}}) is None
     (tmp_path / "empty").mkdir()
     assert "no config.json" in check_perception({**base, "tagger": {"model": "empty"}})
 

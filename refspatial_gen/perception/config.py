@@ -188,6 +188,9 @@ def normalise(value: dict[str, Any] | None) -> dict[str, Any] | None:
             c[key], msg = _section(c[key], fields, f"captions.{key}")
             if msg:
                 raise ValueError(msg)
+    for name, v in ((top.get("detector") or {}).get("thresholds") or {}).items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 <= v <= 1.0:
+            raise ValueError(f"detector.thresholds.{name}: must be a score between 0 and 1, got {v!r}")
     bad = [x for x in top["intrinsics"] if x not in INTRINSICS_ORDER]
     if bad or not top["intrinsics"]:
         raise ValueError(f"intrinsics must list some of {', '.join(INTRINSICS_ORDER)}, got {top['intrinsics']!r}")

@@ -139,6 +139,9 @@ def run_group(task: GroupTask) -> dict[str, Any]:
 
     recipe = _recipe(task.recipe)
     if task.recipe_hash and recipe.hash != task.recipe_hash:
+        _recipe.cache_clear()  # the cache is keyed by path: a file edited between two runs of one process
+        recipe = _recipe(task.recipe)
+    if task.recipe_hash and recipe.hash != task.recipe_hash:
         raise RunError(f"{task.recipe.path} (or a template it names) changed during the run; run the same "
                        f"command again to resume with it, or --fresh", 2)
     out = Path(task.out_dir)
