@@ -10,6 +10,7 @@ OUT ?= out/shards/default
 SCENES ?=
 WORKERS ?= 2
 PYTEST_ARGS ?=
+BENCH_ARGS ?=
 export MUJOCO_GL ?= egl
 export PYOPENGL_PLATFORM ?= egl
 
@@ -22,7 +23,7 @@ SMOLLM_GGUF := $(CACHE_DIR)/models/SmolLM2-135M-Instruct.Q4_1.gguf
 REWRITE_STAMP := $(VENV)/.installed-rewrite-$(HASH)
 REWRITE ?=
 
-.PHONY: setup setup-test setup-rewrite shards test test-slow test-all bench preview lint clean audit assets-shared assets-textured
+.PHONY: setup setup-test setup-rewrite shards test test-slow test-all bench preview lint clean audit assets-shared assets-textured reliability
 
 $(STAMP): pyproject.toml
 	@bash scripts/ensure-system-libs.sh
@@ -34,10 +35,11 @@ $(STAMP): pyproject.toml
 	@touch $@
 
 # the tests also need the optional extras: Ray (scale-out), torch + transformers + onnxruntime (depth models),
-# trl (the reward adapters run inside a real GRPOTrainer), HF datasets + pyarrow (Parquet export)
+# trl (the reward adapters run inside a real GRPOTrainer), HF datasets + pyarrow (Parquet export),
+# sentencepiece (SigLIP tokenizers, perception)
 $(TEST_STAMP): $(STAMP)
-	@echo "installing test extras (pytest, hypothesis, ray, torch CPU, transformers, onnxruntime, trl, coacd, datasets)"
-	@$(BIN)/python -m pip install -q -e '.[test,ray,depth,dev,rl,assets,datasets]'
+	@echo "installing test extras (pytest, hypothesis, ray, torch CPU, transformers, onnxruntime, trl, coacd, datasets, sentencepiece)"
+	@$(BIN)/python -m pip install -q -e '.[test,ray,depth,dev,rl,assets,datasets,perception]'
 	@rm -f $(VENV)/.installed-test-*
 	@touch $@
 
@@ -76,8 +78,12 @@ test-slow: setup-test setup-rewrite
 test-all: setup-test setup-rewrite
 	$(BIN)/python -m pytest -q $(PYTEST_ARGS)
 
+# every broken-input and hostile-recipe case, rerun; rewrites the tables in docs/reliability.md
+reliability: setup-test
+	$(BIN)/python scripts/reliability.py --write-doc
+
 bench: setup-test $(if $(REWRITE),setup-rewrite)
-	$(BIN)/python -m refspatial_gen.bench $(if $(REWRITE),--rewrite)
+	$(BIN)/python -m refspatial_gen.bench $(if $(REWRITE),--rewrite) $(BENCH_ARGS)
 
 preview: setup
 	$(BIN)/refspatial-gen preview $(OUT) --out out/preview

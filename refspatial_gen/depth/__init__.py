@@ -80,6 +80,7 @@ ESTIMATORS.add("provided", "refspatial_gen.depth.provided:ProvidedDepth")
 ESTIMATORS.add("depth-anything", "refspatial_gen.depth.depth_anything:DepthAnythingDepth")
 ESTIMATORS.add("onnx", "refspatial_gen.depth.onnx_model:OnnxDepth")
 ESTIMATORS.add("geometric", "refspatial_gen.depth.geometric:GeometricDepth")
+ESTIMATORS.add("perception", "refspatial_gen.perception.photos:PerceptionDepth")  # photos loaded with `perception:`
 
 
 def estimator_names() -> list[str]:
