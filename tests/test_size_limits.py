@@ -17,6 +17,7 @@ ALLOWED = {
     "run/preview.py",
     "run/report.py",
     "run/report.py:render_html",
+    "sources/image/annotations.py",
     "sources/image/source.py",
     "sources/image/source.py:build_frame",
     "sources/image/boxseg.py:assign_boxes",
