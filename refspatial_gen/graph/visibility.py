@@ -10,7 +10,7 @@ of a frame whose metric scale is unverified, gets `metric: False`: no distance, 
 no size comparison is asked about it.
 
 Recipe (`graph: truth:`, every key optional; docs/quality.md has the measurements behind the defaults):
-  min_visible_px        visible mask pixels an object needs (default 200)
+  min_visible_px        visible mask pixels an object needs (default 150)
   min_visible_fraction  visible / unoccluded projected pixels, where the source knows it (default 0.25)
   min_in_view_fraction  share of the object's 3D box inside the camera's view (default 0.5)
   size_tolerance        widen every category size range by this fraction (default 0.0)
@@ -26,7 +26,7 @@ import numpy as np
 from refspatial_gen.core.errors import RecipeError
 from refspatial_gen.schema import Field, check_section
 
-DEFAULTS = {"min_visible_px": 200, "min_visible_fraction": 0.25, "min_in_view_fraction": 0.5, "size_tolerance": 0.0}
+DEFAULTS = {"min_visible_px": 150, "min_visible_fraction": 0.25, "min_in_view_fraction": 0.5, "size_tolerance": 0.0}
 TRUTH_FIELDS: dict[str, Field] = {
     "min_visible_px": Field(int, default=DEFAULTS["min_visible_px"], min=0, max=1_000_000,
                             doc="visible mask pixels every referent, option and mark needs"),
@@ -73,19 +73,25 @@ def check_truth_section(graph: Any, file: str, lines: dict[tuple[Any, ...], int]
         check_section(graph["truth"], TRUTH_FIELDS, file, lines, ("graph", "truth"), errors)
 
 
-def in_view_fraction(camera: Any, box: Any) -> float:
-    """Share of a GRID^3 lattice inside the box that projects inside the image in front of the camera: how much
-    of the object the image border (or the camera's back) cuts away."""
+def in_view_fractions(camera: Any, boxes: list[Any]) -> np.ndarray:
+    """Per box: share of a GRID^3 lattice inside it that projects inside the image in front of the camera, i.e.
+    how much of the object the image border (or the camera's back) leaves in view. One vectorised pass."""
+    if not boxes:
+        return np.zeros(0)
     t = (np.arange(GRID) + 0.5) / GRID - 0.5
-    g = np.stack(np.meshgrid(t, t, t, indexing="ij"), -1).reshape(-1, 3) * box.size
-    pts = box.center + g @ box.rotation.T
-    cam = camera.world_to_cam(pts)
+    unit = np.stack(np.meshgrid(t, t, t, indexing="ij"), -1).reshape(-1, 3)  # (G, 3)
+    sizes = np.array([b.size for b in boxes], float)  # (n, 3)
+    rots = np.array([b.rotation for b in boxes], float)  # (n, 3, 3)
+    centres = np.array([b.center for b in boxes], float)
+    pts = centres[:, None, :] + np.einsum("ngk,njk->ngj", unit[None] * sizes[:, None, :], rots)
+    cam = camera.world_to_cam(pts.reshape(-1, 3))
     z = cam[:, 2]
     ok = z > 1e-3
-    u = camera.fx * cam[:, 0] / np.where(ok, z, 1.0) + camera.cx
-    v = camera.fy * cam[:, 1] / np.where(ok, z, 1.0) + camera.cy
+    zs = np.where(ok, z, 1.0)
+    u = camera.fx * cam[:, 0] / zs + camera.cx
+    v = camera.fy * cam[:, 1] / zs + camera.cy
     inside = ok & (u >= 0) & (u < camera.width) & (v >= 0) & (v < camera.height)
-    return float(inside.mean())
+    return np.asarray(inside.reshape(len(boxes), -1).mean(axis=1), float)
 
 
 def floor_reasons(geom: Any, floor: Floor) -> list[str | None]:
@@ -128,7 +134,7 @@ def apply_floor(geom: Any, floor: Floor) -> None:
     geom.cache["floor"] = floor
     counts: dict[str, int] = geom.cache.setdefault("truth", {})
     cam = geom.frame.camera
-    geom.in_view = np.array([in_view_fraction(cam, o.box) for o in geom.frame.objects], float)
+    geom.in_view = in_view_fractions(cam, [o.box for o in geom.frame.objects])
     geom.floor_why = floor_reasons(geom, floor)
     geom.metric_why = metric_reasons(geom, floor)
     for i, why in enumerate(geom.floor_why):

@@ -20,6 +20,7 @@ import numpy as np
 from refspatial_gen.core.mask import denormalise_point
 from refspatial_gen.core.model import Frame, FreeSpaceRegion, QAPair, Sample, SceneGraph
 from refspatial_gen.qa.ops import OPS
+from refspatial_gen.qa.verify_truth import check_truth
 from refspatial_gen.qa.verify_world import ANGLE_TOL, LENGTH_ABS_TOL, LENGTH_REL_TOL, Fail, Run, Undecided, World, _size
 
 LETTERS = "ABCDEFGH"
@@ -119,6 +120,7 @@ def verify_qa(
                 problems.append(f"step {k + 1} ({st['op']}) stored {sorted(stored)} but re-evaluates to {sorted(got)}")
         problems += _check_answer(qa, final, w, frame, graph)
     problems += _check_marks(qa, w, order if order is not None else list(frames))
+    problems += check_truth(qa, frames, graphs)  # visibility floor, phrases without faint objects, metric trust
     # --- trace and key steps
     problems += _check_trace(qa, w)
     return problems
