@@ -13,7 +13,7 @@ PYTEST_ARGS ?=
 export MUJOCO_GL ?= egl
 export PYOPENGL_PLATFORM ?= egl
 
-.PHONY: setup setup-test shards test test-slow test-all bench preview lint clean audit assets-shared assets-textured
+.PHONY: setup setup-blender setup-test shards test test-slow test-all bench preview lint clean audit assets-shared assets-textured
 
 $(STAMP): pyproject.toml
 	@bash scripts/ensure-system-libs.sh
@@ -24,9 +24,23 @@ $(STAMP): pyproject.toml
 	@rm -f $(VENV)/.installed-[0-9a-f]*
 	@touch $@
 
+# Blender as a Python module (bpy 5.0.1, ~0.4 GB) for `renderer: blender`: its own environment, because bpy
+# needs Python 3.11 and numpy < 2 (requirements-blender.txt); the generator talks to it through a worker process
+BLENDER_VENV := .venv-blender
+BLENDER_STAMP := $(BLENDER_VENV)/.installed-$(shell cat requirements-blender.txt | sha1sum | cut -c1-12)
+$(BLENDER_STAMP): requirements-blender.txt
+	@$(PY) -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))' || { echo "bpy 5.0.1 needs Python 3.11 (PY=$(PY))"; exit 1; }
+	@test -x $(BLENDER_VENV)/bin/python || $(PY) -m venv $(BLENDER_VENV)
+	@echo "installing Blender (bpy) into $(BLENDER_VENV) (first use only)"
+	@$(BLENDER_VENV)/bin/python -m pip install -q -r requirements-blender.txt
+	@rm -f $(BLENDER_VENV)/.installed-*
+	@touch $@
+
+setup-blender: $(BLENDER_STAMP)
+
 # the tests also need the optional extras: Ray (scale-out), torch + transformers + onnxruntime (depth models),
 # trl (the reward adapters run inside a real GRPOTrainer)
-$(TEST_STAMP): $(STAMP)
+$(TEST_STAMP): $(STAMP) | $(BLENDER_STAMP)
 	@echo "installing test extras (pytest, hypothesis, ray, torch CPU, transformers, onnxruntime, trl, coacd)"
 	@$(BIN)/python -m pip install -q -e '.[test,ray,depth,dev,rl,assets]'
 	@rm -f $(VENV)/.installed-test-*
