@@ -172,20 +172,22 @@ def add_lights(lights: list[dict[str, Any]], ambient: float, target_z: float, ga
 
 
 def set_camera(cam_obj, cam: dict[str, Any]) -> None:
-    """OpenCV intrinsics and pose -> Blender camera. Horizontal sensor fit: lens = fx * sensor / W; shifts
-    are in units of the image width: cx = W/2 - shift_x W, cy = H/2 + shift_y W; fy != fx is a pixel aspect."""
+    """OpenCV intrinsics and pose -> Blender camera, exactly. Measured on Blender 5.0 (a test ray-casts two
+    planes): with a horizontal sensor fit fx = lens W / sensor, fy = fx * pixel_aspect_x / pixel_aspect_y,
+    cx = W/2 - shift_x W and cy = H/2 + shift_y W fy / fx (shifts are in units of the fitted width)."""
     import bpy
     from mathutils import Matrix
 
     sc = bpy.context.scene
     W, H = int(cam["width"]), int(cam["height"])
     fx, fy, cx, cy = (float(cam[k]) for k in ("fx", "fy", "cx", "cy"))
+    r = fy / fx
     sc.render.resolution_x, sc.render.resolution_y, sc.render.resolution_percentage = W, H, 100
-    sc.render.pixel_aspect_x, sc.render.pixel_aspect_y = (1.0, fx / fy) if fx >= fy else (fy / fx, 1.0)
+    sc.render.pixel_aspect_x, sc.render.pixel_aspect_y = (r, 1.0) if r >= 1.0 else (1.0, 1.0 / r)
     cd = cam_obj.data
     cd.sensor_fit, cd.sensor_width = "HORIZONTAL", 36.0
-    cd.lens = (fx if fx <= fy else fy) * 36.0 / W
-    cd.shift_x, cd.shift_y = (W / 2.0 - cx) / W, (cy - H / 2.0) / W
+    cd.lens = fx * 36.0 / W
+    cd.shift_x, cd.shift_y = (W / 2.0 - cx) / W, (cy - H / 2.0) / (W * r)
     cd.clip_start, cd.clip_end = 0.01, 100.0
     T = np.asarray(cam["world_from_cam"], float) @ np.diag([1.0, -1.0, -1.0, 1.0])  # OpenCV -> Blender camera axes
     cam_obj.matrix_world = Matrix(T.tolist())
