@@ -1,6 +1,7 @@
 """recipes/sim_blender.yaml end to end at 96x72 with 4 samples: every question verifies, the shards are
-byte-identical for 1 and 2 workers (each worker process has its own Blender), and the labels are the
-ones the MuJoCo renderer gives for the same units (only the pictures differ)."""
+byte-identical for 1 and 2 workers (each worker process has its own Blender), and the objects (ids,
+categories, masks, boxes) are the ones the MuJoCo renderer gives for the same units. The QA text may
+differ: colour words come from the pixels (graph/colour.py), and the pictures differ."""
 
 import json
 import subprocess
@@ -37,13 +38,10 @@ def _shards(recipe: Path, out: Path, workers: int) -> None:
 
 
 def _labels(out: Path) -> list:
-    """Per sample: every frame's objects (id, category, mask) and the QA pairs."""
-    rows = []
-    for shard in sorted(out.glob("shard-*.mcap")):
-        for s in read_sample_meta(shard):
-            rows.append(([[(o["id"], o["category"], json.dumps(o.get("mask"), sort_keys=True)) for o in f["objects"]]
-                          for f in s["frames"]], json.dumps(s["qa"], sort_keys=True)))
-    return rows
+    """Per sample and frame: the objects' ids, categories, masks and 3D boxes."""
+    return [[[(o["id"], o["category"], json.dumps(o["mask"], sort_keys=True), json.dumps(o["box"], sort_keys=True))
+              for o in f["objects"]] for f in s["frames"]]
+            for shard in sorted(out.glob("shard-*.mcap")) for s in read_sample_meta(shard)]
 
 
 def test_sim_blender_recipe_verifies_and_is_byte_identical_across_workers(tmp_path):

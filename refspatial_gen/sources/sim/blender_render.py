@@ -46,7 +46,7 @@ SETTINGS: dict[str, Field] = {
     "exposure": Field(float, default=0.0, min=-10, max=10, doc="exposure in stops"),
     "light_gain": Field(float, default=1.0, min=0, max=100, doc="multiplies every light's power (after RefSpatial's 0.6-1.4x)"),
     "ambient_gain": Field(float, default=1.0, min=0, max=100, doc="multiplies the grey world light (MuJoCo's ambient level)"),
-    "min_mask_iou": Field(float, default=0.8, min=0, max=1, doc="drop when an object's Blender/MuJoCo mask IoU is lower"),
+    "min_mask_iou": Field(float, default=0.9, min=0, max=1, doc="drop when an object's Blender/MuJoCo mask IoU is lower"),
     "min_depth_agree": Field(float, default=0.97, min=0, max=1, doc="drop when fewer pixels' depths agree"),
     "depth_tol": Field(float, default=0.01, min=0, doc="metres: depths agree within depth_tol + depth_rel_tol * z"),
     "depth_rel_tol": Field(float, default=0.01, min=0),
@@ -128,6 +128,7 @@ class BlenderWorker:
 
 
 _POOL: dict[tuple[int, str], BlenderWorker] = {}
+TIMES: dict[str, float] = {}  # seconds inside the worker by stage (build, rgb, passes), summed: for `make bench`
 
 
 def worker(python: Path) -> BlenderWorker:
@@ -170,6 +171,8 @@ def render_blender(scene, cams: list[Camera], s: dict[str, Any]) -> list[tuple[n
                        "settings": {k: s[k] for k in _WORKER_KEYS}}, float(s["timeout_s"]))
     if not reply.get("ok"):
         raise DropUnit("render_failed", reply.get("error", "Blender failed"))
+    for k, v in reply.get("seconds", {}).items():
+        TIMES[k] = TIMES.get(k, 0.0) + float(v)
     out = []
     for v in range(len(cams)):
         with Image.open(req_dir / "out" / f"v{v}_rgb.png") as im:
