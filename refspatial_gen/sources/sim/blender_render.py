@@ -94,11 +94,16 @@ class BlenderWorker:
 
     def request(self, req: dict[str, Any], timeout: float) -> dict[str, Any]:
         req = {**req, "log": str(self.log)}
-        self.proc.stdin.write((json.dumps(req) + "\n").encode())
-        self.proc.stdin.flush()
+        try:
+            self.proc.stdin.write((json.dumps(req) + "\n").encode())
+            self.proc.stdin.flush()
+        except OSError as e:  # the worker is gone (crashed between two scenes)
+            tail = self.log_tail()
+            self.close(kill=True)
+            raise DropUnit("render_failed", f"the Blender worker is gone ({e}): {tail}") from None
         ready, _, _ = select.select([self.proc.stdout], [], [], timeout)
         if not ready:
-            self.close()
+            self.close(kill=True)
             raise DropUnit("render_timeout", f"Blender took longer than {timeout:.0f} s")
         line = self.proc.stdout.readline()
         if not line:
@@ -116,9 +121,12 @@ class BlenderWorker:
     def alive(self) -> bool:
         return self.proc.poll() is None
 
-    def close(self) -> None:
+    def close(self, kill: bool = False) -> None:
+        """End the worker: closing its stdin ends its loop; `kill` (or a worker that does not end) kills it."""
         if self.proc.poll() is None:
             try:
+                if kill:
+                    raise subprocess.TimeoutExpired("blender", 0)
                 self.proc.stdin.close()
                 self.proc.wait(timeout=10)
             except (OSError, subprocess.TimeoutExpired):
