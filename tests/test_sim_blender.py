@@ -190,3 +190,13 @@ def test_blender_camera_matches_opencv_intrinsics_off_centre_and_non_square():
         assert np.allclose(depth[bg], expect[bg], rtol=2e-4, atol=2e-4), np.abs(depth[bg] - expect[bg]).max()
         uv, _ = cam.project(np.array([[0.0, 0.0, 0.2]]))  # the cube's top centre is drawn where the model says
         assert ids[int(uv[0, 1]), int(uv[0, 0])] == 1
+
+
+@pytest.mark.slow
+def test_a_scene_over_the_timeout_is_dropped_and_the_next_one_renders():
+    _need_blender()
+    with pytest.raises(DropUnit) as e:
+        _unit("sim:000003", {**SMALL, "width": 320, "height": 240, "blender": {"samples": 256, "timeout_s": 1}})
+    assert e.value.reason == "render_timeout"
+    frames = _unit("sim:000003", SMALL)  # a fresh worker takes over
+    assert frames and frames[0].meta["renderer"] == "blender"
