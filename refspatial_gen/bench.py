@@ -2,8 +2,10 @@
 
 Sections: the simulated pipeline end to end with a per-stage breakdown and peak memory; the same scenes
 rendered by Blender Cycles (frames/s per core, agreement with MuJoCo's depth and masks); QA generation
-from cached scene graphs; the image source per image; streaming reads vs. WebDataset; and the run
-executor's scaling from 1 to 2 workers and its memory when the number of scenes grows 10x.
+from cached scene graphs; the image source per image; streaming reads vs. WebDataset; read throughput
+of every export format on the same samples; and the run executor's scaling from 1 to 2 workers and its
+memory when the number of scenes grows 10x. Opt-in (`--rewrite`, `make bench REWRITE=1`): LLM rewrites
+per second and the share accepted against the local llama.cpp server (refspatial_gen/rewrite/bench.py).
 """
 
 from __future__ import annotations
@@ -207,10 +209,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scale-scenes", type=int, default=96, help="scenes for the 1 vs 2 worker scaling run")
     ap.add_argument("--mem-scenes", type=int, default=16, help="scenes for the memory run (and 10x as many)")
     ap.add_argument("--blender-scenes", type=int, default=4, dest="blender_scenes", help="scenes for the Blender renderer")
-    ap.add_argument("--only", nargs="*", default=None, choices=["sim", "blender", "qa", "image", "stream", "scale", "eval"])
+    ap.add_argument("--only", nargs="*", default=None,
+                    choices=["sim", "blender", "qa", "image", "stream", "formats", "scale", "eval", "rewrite"])
+    ap.add_argument("--rewrite", action="store_true", help="add the (slow) LLM rewrite section")
+    ap.add_argument("--rewrite-scenes", type=int, default=2, help="default-recipe scenes whose pairs are rewritten")
     ap.add_argument("--json", default=None, help="also write the figures to this file")
     args = ap.parse_args(argv)
-    sections = args.only or ["sim", "blender", "qa", "image", "stream", "scale", "eval"]
+    sections = args.only or (["sim", "blender", "qa", "image", "stream", "formats", "scale", "eval"]
+                             + (["rewrite"] if args.rewrite else []))
     figures: dict[str, Any] = {"machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.python_version()}"}
     work = Path(tempfile.mkdtemp(prefix="refspatial-bench-"))
     try:
@@ -230,10 +236,20 @@ def main(argv: list[str] | None = None) -> int:
 
                 make_toy_shards(shard_dir)
                 figures["stream"] = bench_stream(shard_dir, work)
+            elif name == "formats":
+                from refspatial_gen.shards.bench import format_throughput, make_toy_shards
+
+                shard_dir = work / "formats"
+                make_toy_shards(shard_dir)
+                figures["formats"] = format_throughput(shard_dir, work_dir=work / "formats-out")
             elif name == "scale":
                 figures["scale"] = bench_scaling(args.scale_scenes, args.mem_scenes, work)
             elif name == "eval":
                 figures["eval"] = bench_eval(args.scenes, work)
+            elif name == "rewrite":
+                from refspatial_gen.rewrite.bench import bench_rewrite
+
+                figures["rewrite"] = bench_rewrite(work, args.rewrite_scenes)
             print(f"== {name} ({time.perf_counter() - t0:.1f} s)\n{json.dumps(figures[name], indent=2)}", flush=True)
     finally:
         shutil.rmtree(work, ignore_errors=True)

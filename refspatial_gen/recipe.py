@@ -28,6 +28,7 @@ TOP_FIELDS: dict[str, Field] = {
     "qa": Field(dict, default=None),
     "shards": Field(dict, default=None),
     "splits": Field(dict, default=None, doc="train/val/test fractions and the unseen split (run/splits.py)"),
+    "rewrite": Field(dict, default=None, doc="LLM rewriting of questions (docs/rewrite.md)"),
 }
 
 SOURCE_FIELDS: dict[str, Field] = {
@@ -68,6 +69,7 @@ class Recipe:
     hash: str  # sha256 over the recipe text and every file it depends on (templates)
     raw: dict[str, Any] = field(default_factory=dict)
     splits: dict[str, Any] = field(default_factory=dict)  # run/splits.py config, recorded in index.json
+    rewrite: Any = None  # compiled `rewrite:` section (refspatial_gen.rewrite.config), None when absent or off
 
 
 def _source_config(kind: str, data: Any, file: str, lines: dict, path: tuple, errors: list[RecipeError]) -> dict:
@@ -129,6 +131,16 @@ def load_recipe(path: str | Path, *, seed: int | None = None, scenes: int | None
             errors.extend(e.errors)
         else:
             deps = [Path(p) for p in getattr(qa_cfg, "source_files", [])]
+    rewrite_cfg = None
+    if top["rewrite"] is not None and not errors:
+        try:
+            rewrite_cfg = importlib.import_module("refspatial_gen.rewrite.config").load_rewrite_config(
+                top["rewrite"], file, lines)
+        except RecipeError as e:
+            errors.append(e)
+        except RecipeErrors as e:
+            errors.extend(e.errors)
+        deps += [Path(p) for p in getattr(rewrite_cfg, "source_files", ())]
     if errors:
         raise RecipeErrors(errors)
     h = hashlib.sha256(Path(file).read_bytes())
@@ -137,7 +149,7 @@ def load_recipe(path: str | Path, *, seed: int | None = None, scenes: int | None
     return Recipe(
         path=file, name=top["name"] or Path(file).stem, seed=top["seed"] if seed is None else seed,
         scenes=top["scenes"] if scenes is None else scenes, sources=specs, graph=graph_cfg, qa=qa_cfg,
-        shards=shards, hash=h.hexdigest(), raw=data, splits=splits,
+        shards=shards, hash=h.hexdigest(), raw=data, splits=splits, rewrite=rewrite_cfg,
     )
 
 

@@ -81,27 +81,85 @@ def test_geometric_ground_contact_distance():
 def test_geometric_pitch_support_and_failures():
     est = get_estimator("geometric", {"camera_height": 1.5, "size_fallback": False})
     table = _rect(70, 110, 20, 140)
-    cup = _rect(55, 72, 70, 85)  # its bottom sits inside the table's mask: it rests on the table
+    cup = _rect(64, 72, 70, 85)  # its bottom sits inside the table's mask: it rests on the table
     kite = _rect(5, 20, 10, 30)  # entirely above the horizon, nothing under it
-    res = est.estimate(None, _prior(masks=[(1, table), (2, cup), (3, kite)]))
+    cats = {1: "dining table", 2: "cup", 3: "kite"}
+    res = est.estimate(None, _prior(masks=[(1, table), (2, cup), (3, kite)], categories=cats))
     notes = res.meta["objects"]
     assert notes["1"]["contact"] == "ground" and notes["2"]["contact"] == "support:1"
     assert notes["3"]["reason"] == "no_ground_contact"
-    assert abs(res.depth_m[60, 75] - res.depth_m[100, 75]) < 1e-4  # cup at the table's billboard depth
+    assert abs(res.depth_m[66, 75] - res.depth_m[100, 75]) < 1e-4  # cup at the table's billboard depth
     # pitched down 10 degrees: the horizon moves up by f * tan(10deg), the same contact row is nearer
     pitched = get_estimator("geometric", {"camera_height": 1.5, "pitch_deg": 10.0}).estimate(None, _prior(masks=[(1, table)]))
     assert abs(pitched.meta["horizon_row"] - (60.0 - 100 * np.tan(np.deg2rad(10)))) < 1e-9
     assert pitched.meta["objects"]["1"]["contact_depth"] < res.meta["objects"]["1"]["contact_depth"]
 
 
+def test_geometric_occluded_object_stands_behind_not_on():
+    """A car whose lower half is hidden by a car in front (its mask ends on the front car's roof) was
+    placed on that roof: "car on car". A car cannot bear a car: it now stands on the ground behind the
+    front car, at the distance where its top row puts its top at a car's typical height (1.5 m)."""
+    est = get_estimator("geometric", {"camera_height": 1.2})
+    front = _rect(60, 110, 40, 120)  # contact row 110: 1.2 * 100 / 50 = 2.4 m away
+    rear = _rect(55, 60, 60, 100)  # its bottom edge is the front car's roof line
+    p = _prior(masks=[(1, front), (2, rear)], categories={1: "car", 2: "car"})
+    notes = est.estimate(None, p).meta["objects"]
+    assert notes["1"]["contact"] == "ground"
+    assert notes["2"]["contact"] == "behind:1"
+    d = notes["2"]["contact_depth"]
+    assert d > notes["1"]["contact_depth"] + 1.0  # behind the car in front (and its 1.2 m depth)
+    top = 1.2 - d * (55.0 - 60.0) / 100.0  # its top edge's height at that distance
+    assert abs(top - 1.5) < 1e-6
+
+
+def test_geometric_contact_must_be_seen_on_the_top_surface():
+    """A table can bear a bottle, but a bottle whose bottom merely touches the table's top edge (no
+    tabletop visible beside its foot) may stand behind the table: it does not rest on it."""
+    est = get_estimator("geometric", {"camera_height": 1.5})
+    table = _rect(70, 110, 20, 140)
+    on_edge = _rect(62, 70, 70, 85)  # ends one row above the table's first row
+    p = _prior(masks=[(1, table), (2, on_edge)], categories={1: "dining table", 2: "bottle"})
+    notes = est.estimate(None, p).meta["objects"]
+    assert notes["2"]["contact"].startswith("behind:1") or notes["2"].get("reason") == "contact_occluded"
+    assert notes["2"]["contact"] != "support:1"
+
+
 def test_geometric_size_prior_conflict_and_fallback():
-    toaster = _rect(62, 70, 70, 80)  # bottom just under the horizon: the far floor would make it huge
-    p = _prior(masks=[(1, toaster)], categories={1: "toaster"})
+    toilet = _rect(62, 76, 70, 80)  # bottom just under the horizon: the far floor would make it 1.24 m tall
+    p = _prior(masks=[(1, toilet)], categories={1: "toilet"})  # at most 1.05 m (x 1.15)
     res = get_estimator("geometric", {"size_fallback": False}).estimate(None, p)
     assert res.meta["objects"]["1"]["reason"] == "size_prior_conflict"
     res = get_estimator("geometric", {"size_fallback": True}).estimate(None, p)
     assert res.meta["objects"]["1"]["contact"] == "size_prior"
-    assert np.allclose(res.depth_m[toaster], 0.2 * 100.0 / 8, rtol=1e-5)  # typical 0.2 m over 8 rows
+    assert np.allclose(res.depth_m[toilet], 0.78 * 100.0 / 14, rtol=1e-5)  # typical 0.78 m over 14 rows
+
+
+def test_camera_fit_recovers_height_and_pitch():
+    """People and cars of known height standing at several distances fix the camera: a photo taken
+    0.8 m high (from a car seat), pitched 5 degrees down, is recovered from its objects although the prior says 1.5 m,
+    level (the prior would lift the people over 2.1 m tall). One odd object (a toddler) is outvoted."""
+    from refspatial_gen.depth.camera_fit import Anchor, fit_camera, implied_height
+
+    fy, cy, h, th = 500.0, 240.0, 0.8, np.deg2rad(5.0)
+
+    def rows(height, dist):  # bottom and top rows of an upright object at this horizontal distance
+        b = np.arctan2(h, dist) - th
+        t = np.arctan2(h - height, dist) - th
+        return cy + fy * np.tan(b), cy + fy * np.tan(t)
+
+    objs = [("person", 1.75, 6.0), ("person", 1.62, 9.0), ("car", 1.45, 14.0), ("person", 1.8, 20.0),
+            ("car", 1.9, 11.0), ("person", 0.85, 7.0)]
+    anchors = [Anchor(k, c, *rows(H, d)) for k, (c, H, d) in enumerate(objs)]
+    naive = implied_height(1.5, 0.0, fy, cy, anchors[0].v_bottom, anchors[0].v_top)
+    assert naive is not None and naive > 2.1  # the level 1.5 m prior: a 1.75 m person lifted > 2.1 m
+    fit = fit_camera(anchors, fy, cy, 1.5, 0.0)
+    assert fit.source == "fit" and fit.status == "consistent" and len(fit.inliers) >= 5
+    assert abs(fit.camera_height - h) < 0.15 and abs(np.rad2deg(fit.pitch) - 5.0) < 2.0
+    for a in anchors[:5]:
+        assert 1.1 <= implied_height(fit.camera_height, fit.pitch, fy, cy, a.v_bottom, a.v_top) <= 2.1
+    # nothing of known size: the prior stays and the scale is unverified; one object alone fits any camera
+    assert fit_camera([], fy, cy, 1.5, 0.0).status == "unverified"
+    assert fit_camera(anchors[:1], fy, cy, 1.5, 0.0).status == "unverified"
 
 
 def test_scale_recovery_from_contacts():

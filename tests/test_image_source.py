@@ -13,6 +13,7 @@ from refspatial_gen.core.serialize import dumps
 from refspatial_gen.sources import get_source
 from refspatial_gen.sources.image import ImageSource, parse_key, unit_key
 from refspatial_gen.sources.image.rle import encode_counts_string
+from refspatial_gen.truth.sizes import UNRANGED, can_bear, check_size
 
 pytest.importorskip("open3d")
 
@@ -192,7 +193,7 @@ def test_coco_geometric_frames(shared_data):
     keys = src.unit_keys({}, None, str(root))
     assert len(keys) == 50 and keys == sorted(keys)
     frames, reasons = [], {}
-    for k in keys[:12]:
+    for k in keys[:24]:
         try:
             frames.append(src.load(k, np.random.default_rng(0), {"_input": str(root)})[0])
         except DropUnit as e:
@@ -219,6 +220,11 @@ def test_coco_geometric_frames(shared_data):
             assert x0 - 0.1 * f.camera.width <= u <= x1 + 0.1 * f.camera.width
             if o.provenance.get("contact") == "ground":
                 assert abs(o.box.bottom_z) < 0.02  # standing on the ground plane of the prior
+            # truth checks: what stays is inside its category's range; it rests only on what can bear it
+            assert check_size(o.category, o.box.size, dims=("height",)) in (None, UNRANGED) \
+                or o.provenance.get("size_check") != "in_range"
+            if "rests_on" in o.provenance:
+                assert can_bear(o.provenance["rests_on"]["category"], o.category)
         # front/behind agrees with the image for ground contacts: lower in the image = nearer
         ground = [o for o in f.objects if o.provenance.get("contact") == "ground"]
         for a in ground:

@@ -83,7 +83,7 @@ def test_state_from_other_topology_is_refused(shard_dir):
     d, _ = shard_dir
     st = _slots(d)[0].state_dict()
     other = ShardStream(d, rank=0, world_size=1, worker=0, num_workers=1)
-    with pytest.raises(ValueError, match="slots"):
+    with pytest.raises(ValueError, match="rank 0 of 2 with 2 workers"):
         other.load_state_dict(st)
 
 

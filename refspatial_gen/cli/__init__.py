@@ -21,6 +21,7 @@ COMMAND_MODULES = [
     "refspatial_gen.cli.verify",
     "refspatial_gen.cli.eval",
     "refspatial_gen.cli.audit",
+    "refspatial_gen.cli.rewrite",
 ]
 
 

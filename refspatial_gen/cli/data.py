@@ -9,13 +9,20 @@ from pathlib import Path
 
 
 def register(sub) -> None:
-    from refspatial_gen.shards.export import FORMATS
+    from refspatial_gen.shards.export import EXPORTERS
 
-    p = sub.add_parser("export", help="export a shard directory to a trainer's or benchmark's layout (docs/shards.md, docs/eval.md)")
+    p = sub.add_parser("export", help="export a shard directory to a trainer's or benchmark's layout: "
+                       + ", ".join(EXPORTERS) + " (docs/shards.md, docs/eval.md)",
+                       description="Export into a new folder (written beside it, checked, then renamed into place). "
+                                   "Every shard is checked against index.json as it is read.")
     p.add_argument("dir", help="shard directory (with index.json)")
-    p.add_argument("--format", required=True, choices=FORMATS)
-    p.add_argument("--out", required=True, help="output directory")
-    p.add_argument("--no-check", action="store_true", help="skip the sha256 check of the shards against index.json")
+    p.add_argument("--format", required=True, choices=list(EXPORTERS))
+    p.add_argument("--out", required=True, help="output folder (must be empty or absent unless --overwrite)")
+    p.add_argument("--overwrite", action="store_true", help="replace a non-empty output folder whole")
+    p.add_argument("--samples-per-shard", type=int, default=None,
+                   help="webdataset/hf: samples per tar or Parquet file (default: about 16 files, at most 256 each)")
+    p.add_argument("--no-check", action="store_true",
+                   help="skip the up-front check of the whole folder (each shard is still verified as it is read)")
     p.add_argument("--split", action="append", choices=["train", "val", "test", "unseen"],
                    help="sft, rft, refspatial-bench: splits to write (repeatable; defaults: train / train / test)")
     p.set_defaults(func=cmd_export)
@@ -48,17 +55,12 @@ def cmd_export(args) -> int:
             return _fail(f"--split applies to the sft, rft and refspatial-bench formats, not {args.format}")
         kw["splits"] = tuple(args.split)
     try:
-        res = export(Path(args.dir), args.format, Path(args.out), **kw)
-    except (ValueError, OSError) as e:  # ShardError is a ValueError and names the file
+        res = export(Path(args.dir), args.format, Path(args.out), overwrite=args.overwrite,
+                     samples_per_shard=args.samples_per_shard, **kw)
+    except (ValueError, OSError) as e:  # ShardError and ExportError are ValueErrors and name the file
         return _fail(str(e))
-    if args.format == "refspatial":
-        from refspatial_gen.shards.export_refspatial import check_roborefer_layout
-
-        errs = check_roborefer_layout(Path(args.out))
-        for e in errs[:20]:
-            print(f"layout: {e}", file=sys.stderr)
-        if errs:
-            return _fail(f"{args.out}: export violates {len(errs)} RoboRefer loader rule(s)")
+    except ImportError as e:
+        return _fail(f"--format {args.format} needs an optional package ({e.name}): pip install 'refspatial-gen[datasets]'")
     print(f"{args.out}: {json.dumps(res, sort_keys=True)}")
     return 0
 

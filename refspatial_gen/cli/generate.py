@@ -32,6 +32,7 @@ def register(sub) -> None:
     s = sub.add_parser("stats", help="dataset statistics of a shard folder")
     s.add_argument("dir")
     s.add_argument("--json", action="store_true")
+    s.add_argument("--no-check", action="store_true", help="skip the size/sha256 check of the shards against index.json")
     s.set_defaults(func=cmd_stats)
 
 
@@ -89,11 +90,28 @@ def _salvage(paths: list[str]) -> int:
 
 
 def cmd_stats(args) -> int:
+    """Statistics recorded in index.json, after checking that the shards they describe are intact."""
     from refspatial_gen.shards.index import read_index
+    from refspatial_gen.shards.integrity import check_shards
 
-    index = read_index(Path(args.dir))
-    st = index["stats"]
-    out = {k: st[k] for k in ("samples", "qa_pairs", "by_relation", "by_family", "by_steps", "by_source", "dropped")}
+    try:
+        index = read_index(Path(args.dir))
+    except ValueError as e:
+        print(f"stats: {e}", file=sys.stderr)
+        return 2
+    problems = [] if args.no_check else check_shards(Path(args.dir))
+    if problems:
+        for pr in problems:
+            print(f"{pr['file']}: {pr['problem']}: {pr['detail']}", file=sys.stderr)
+        print(f"stats: {args.dir}: {len(problems)} integrity problem(s); the statistics would not describe "
+              f"the shards on disk (--no-check shows them anyway)", file=sys.stderr)
+        return 1
+    st = index.get("stats")
+    keys = ("samples", "qa_pairs", "by_relation", "by_family", "by_steps", "by_source", "dropped")
+    if not isinstance(st, dict) or any(not isinstance(st.get(k), (int, dict)) for k in keys):
+        print(f"stats: {Path(args.dir) / 'index.json'}: no run statistics (not written by `shards`?)", file=sys.stderr)
+        return 2
+    out = {k: st[k] for k in keys}
     out["truth"] = st.get("truth", {})
     out["units"] = st.get("units", 0)
     out["shards"] = len(index["shards"])

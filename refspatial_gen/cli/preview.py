@@ -9,10 +9,11 @@ from pathlib import Path
 
 def _preview(args: argparse.Namespace) -> int:
     from refspatial_gen.run.preview import preview_dir
+    from refspatial_gen.shards.reader import ShardError
 
     try:
         index = preview_dir(Path(args.dir), Path(args.out), n=args.n, seed=args.seed)
-    except FileNotFoundError as e:
+    except (FileNotFoundError, ShardError) as e:
         print(f"refspatial-gen preview: {e}", file=sys.stderr)
         return 1
     print(index)

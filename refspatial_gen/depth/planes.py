@@ -3,6 +3,12 @@
 Vectorised numpy RANSAC rather than open3d's `segment_plane`: it takes the run's numpy Generator (so a
 frame is a pure function of its inputs and seed) and can restrict hypotheses to normals within a cone
 around the prior "up" direction, which open3d cannot.
+
+Hypotheses: random point triples, plus (with `normals`) one-point hypotheses, a point with its own
+local surface normal. A triple lies on a plane holding a fraction f of the points with probability f^3
+(0.7 % for a floor holding 19 % of a room): 256 triples then miss the floor about one time in six, and
+a table or a slanted bed cover wins instead (a 22 degree gravity error measured on a SUN RGB-D frame).
+A point-normal hypothesis lies on it with probability about f, so a few hundred find it every time.
 """
 
 from __future__ import annotations
@@ -24,11 +30,31 @@ class Plane:
         return points @ self.n + self.d
 
 
+def point_normals(points: np.ndarray, which: np.ndarray | None = None, k: int = 16) -> np.ndarray:
+    """Unit surface normal (sign arbitrary) of the points indexed by `which` (default all): PCA of each
+    one's k nearest neighbours. NaN elsewhere and where the neighbourhood is not a surface (too few
+    points, or no clearly smallest direction)."""
+    from scipy.spatial import cKDTree
+
+    P = np.asarray(points, np.float64)
+    out = np.full(P.shape, np.nan)
+    if len(P) <= k:
+        return out
+    which = np.arange(len(P)) if which is None else np.asarray(which, np.int64)
+    _, nb = cKDTree(P).query(P[which], k=k)
+    Q = P[nb] - P[nb].mean(axis=1, keepdims=True)
+    w, v = np.linalg.eigh(np.einsum("nki,nkj->nij", Q, Q))
+    flat = w[:, 0] < 0.2 * w[:, 1]  # a plane-like patch: the smallest spread well below the others
+    out[which[flat]] = v[flat, :, 0]
+    return out
+
+
 def ransac_plane(points: np.ndarray, rng: np.random.Generator, thresh: float, up: np.ndarray | None = None,
                  max_tilt: float = np.deg2rad(40.0), iters: int = 256, score_points: int = 4000,
-                 vertical_to: np.ndarray | None = None) -> Plane | None:
+                 vertical_to: np.ndarray | None = None, normals: np.ndarray | None = None) -> Plane | None:
     """Best plane (most inliers within `thresh`) whose normal lies within `max_tilt` of `up` (if given),
-    or, with `vertical_to`, a vertical plane: normal within 10 degrees of perpendicular to that up."""
+    or, with `vertical_to`, a vertical plane: normal within 10 degrees of perpendicular to that up.
+    `normals` (per point, NaN = none; see `point_normals`) add `iters` one-point hypotheses."""
     P = np.asarray(points, np.float64)
     N = len(P)
     if N < 3:
@@ -39,6 +65,13 @@ def ransac_plane(points: np.ndarray, rng: np.random.Generator, thresh: float, up
     norm = np.linalg.norm(n, axis=1)
     ok = norm > 1e-12
     n = n / np.where(ok, norm, 1.0)[:, None]
+    if normals is not None:
+        have = np.flatnonzero(np.all(np.isfinite(normals), axis=1))
+        if len(have):
+            pick = have[rng.integers(0, len(have), size=iters)]
+            a = np.concatenate([a, P[pick]])
+            n = np.concatenate([n, normals[pick]])
+            ok = np.concatenate([ok, np.ones(len(pick), bool)])
     if up is not None:
         s = np.sign(n @ up)
         n = n * np.where(s == 0, 1.0, s)[:, None]
@@ -73,9 +106,11 @@ def ransac_plane(points: np.ndarray, rng: np.random.Generator, thresh: float, up
 
 
 def horizontal_planes(points: np.ndarray, rng: np.random.Generator, up: np.ndarray, thresh: float,
-                      min_inliers: int, max_planes: int = 3, max_tilt: float = np.deg2rad(40.0)) -> list[Plane]:
+                      min_inliers: int, max_planes: int = 3, max_tilt: float = np.deg2rad(40.0),
+                      normals: np.ndarray | None = None) -> list[Plane]:
     """Up to `max_planes` disjoint planes within `max_tilt` of `up`, each with >= `min_inliers` points,
-    largest first. Later planes are required to be parallel to the first (within 10 degrees)."""
+    largest first. Later planes are required to be parallel to the first (within 10 degrees).
+    `normals` (per point) seed one-point hypotheses (see the module docstring)."""
     P = np.asarray(points, np.float64)
     remaining = np.arange(len(P))
     planes: list[Plane] = []
@@ -83,7 +118,8 @@ def horizontal_planes(points: np.ndarray, rng: np.random.Generator, up: np.ndarr
         if len(remaining) < min_inliers:
             break
         cone_up, tilt = (up, max_tilt) if not planes else (planes[0].n, np.deg2rad(10.0))
-        pl = ransac_plane(P[remaining], rng, thresh, cone_up, tilt)
+        pl = ransac_plane(P[remaining], rng, thresh, cone_up, tilt,
+                          normals=None if normals is None else normals[remaining])
         if pl is None or len(pl.inliers) < min_inliers:
             break
         planes.append(Plane(pl.n, pl.d, remaining[pl.inliers]))

@@ -96,7 +96,7 @@ def run_group(task: GroupTask) -> dict[str, Any]:
         unit = Unit(uid, sidx, kind, key)
         stats["units"] += 1
         try:
-            sample = make_sample(recipe, unit, timer)
+            sample = make_sample(recipe, unit, timer, task.out_dir)
         except DropUnit as e:
             S.add_drop(stats, e.reason)
             continue

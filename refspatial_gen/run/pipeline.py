@@ -22,7 +22,7 @@ class StageTimer:
         return t
 
 
-def make_sample(recipe: Recipe, unit: Unit, timer: StageTimer) -> Sample:
+def make_sample(recipe: Recipe, unit: Unit, timer: StageTimer, out_dir: str | None = None) -> Sample:
     """Build the unit's sample. Raises DropUnit (with a reason) when the unit yields nothing usable."""
     from refspatial_gen.graph import build_graph
     from refspatial_gen.qa import generate_qa
@@ -45,5 +45,12 @@ def make_sample(recipe: Recipe, unit: Unit, timer: StageTimer) -> Sample:
     timer.add("qa", t)
     if not qa:
         raise DropUnit("no_questions", f"{unit.key}: no question passed the checks")
-    return Sample(sample_id=unit.uid, frames=frames, graphs=graphs, qa=qa, unit_key=unit.key,
-                  meta={"source": unit.kind})
+    sample = Sample(sample_id=unit.uid, frames=frames, graphs=graphs, qa=qa, unit_key=unit.key,
+                    meta={"source": unit.kind})
+    if recipe.rewrite is not None:  # LLM rewording of the questions, each checked (docs/rewrite.md)
+        from refspatial_gen.rewrite.stage import rewrite_sample
+
+        t = time.perf_counter()
+        rewrite_sample(recipe.rewrite, sample, out_dir)
+        timer.add("rewrite", t)
+    return sample

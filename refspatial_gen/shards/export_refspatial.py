@@ -1,9 +1,11 @@
 """Export to the RefSpatial layout read by RoboRefer-style trainers (formats.md).
 
 OUT/
-  image/<name>.jpg|png      the stored RGB bytes, copied (no re-encoding); marked copies for visual choice
-  depth/<name>.png          8-bit, 3-channel, per-image min-max normalised inverse depth, near = 255
-  <family>.json             a JSON list of {id, image, depth, conversations[, think]}
+  image/<stem>_v<k>.jpg|png  the stored RGB bytes of view k, copied (no re-encoding);
+                             image/<stem>_v<k>_marks<q>.png: marked copies for visual choice
+  depth/<stem>_v<k>.png      8-bit, 3-channel, per-image min-max normalised inverse depth, near = 255
+  <family>.json              a JSON list of {id, image, depth, conversations[, think]}
+(<stem>: the sample id, or its safe characters plus a hash when it has others: export_files.sample_stem)
 
 Records group the QA pairs of one sample that share a family and image list (at most 15 per record);
 reasoning pairs (those with a trace) go into their own records, which carry `think`: one entry per
@@ -19,14 +21,26 @@ from typing import Iterable
 
 import numpy as np
 
+from refspatial_gen.shards.export_files import (
+    EXT,
+    StemRegistry,
+    check_image_refs,
+    file_sha256,
+    sha256,
+    stored_image_hashes,
+    view_name,
+    write_new,
+)
 from refspatial_gen.shards.format import RawSample
-from refspatial_gen.shards.marks import draw_marks, marks_of
+from refspatial_gen.shards.marks import marked_pngs, marks_of
+from refspatial_gen.shards.records import strip_tokens
 
 MAX_PAIRS = 15
-_EXT = {"jpeg": "jpg", "png": "png"}
+_EXT = EXT  # older name, imported by other exporters
 
 
 def safe_name(s: str) -> str:
+    """A family name as a file name (family names are plain words; this only guards odd ones)."""
     return re.sub(r"[^A-Za-z0-9._-]+", "_", s).strip("_") or "x"
 
 
@@ -49,90 +63,106 @@ def inverse_depth_png(depth: np.ndarray) -> bytes:
     return buf.tobytes()
 
 
-def _strip_tokens(text: str) -> str:
-    return text.replace("<image>", "").replace("<depth>", "").strip()
-
-
-def _write_once(path: Path, data: bytes) -> None:
-    if not path.exists():
-        path.write_bytes(data)
-
-
-def export_sample(raw: RawSample, out: Path, with_depth: bool = True) -> dict[str, list[dict]]:
-    """Write one sample's images and return its records by family."""
+def export_sample(raw: RawSample, out: Path, with_depth: bool = True, stems: StemRegistry | None = None) -> dict[str, list[dict]]:
+    """Write one sample's images (each file created once: a collision raises) and return its records by family."""
     h = raw.header
-    base = safe_name(h["sample_id"])
+    base = (stems or StemRegistry()).claim(h["sample_id"])
     views = int(h["views"])
     frame_ids = list(h["frame_ids"])
-    names: dict[int, str] = {}
+    images: dict[int, str] = {}
     for v in range(views):
         data, fmt = raw.image_bytes(v)
-        names[v] = f"{base}_v{v}"
-        _write_once(out / "image" / f"{names[v]}.{_EXT.get(fmt, fmt)}", data)
+        images[v] = view_name(base, v, EXT.get(fmt, fmt))
+        write_new(out / "image" / images[v], data)
         if with_depth:
-            _write_once(out / "depth" / f"{names[v]}.png", inverse_depth_png(raw.depth(v)))
-    ext = {v: _EXT.get(raw.image_bytes(v)[1], "jpg") for v in range(views)}
+            write_new(out / "depth" / view_name(base, v, "png"), inverse_depth_png(raw.depth(v)))
     groups: dict[tuple, list[tuple[int, dict]]] = {}
     for qi, qa in enumerate(raw.qa_json()):
         vs = tuple(frame_ids.index(f) for f in qa["frame_ids"] if f in frame_ids) or (0,)
-        marks = marks_of(qa)
-        key = (qa["family"], vs, bool(qa.get("trace")), qi if marks else -1)
+        key = (qa["family"], vs, bool(qa.get("trace")), qi if marks_of(qa) else -1)
         groups.setdefault(key, []).append((qi, qa))
-    graphs = {g["frame_id"]: g for g in raw.graphs_json()}
     records: dict[str, list[dict]] = {}
     for (family, vs, reasoning, marked), items in sorted(groups.items(), key=lambda kv: kv[1][0][0]):
-        images = [f"{names[v]}.{ext[v]}" for v in vs]
-        depths = [f"{names[v]}.png" for v in vs]
+        names = [images[v] for v in vs]
         if marked >= 0:
-            qa = items[0][1]
-            by_view: dict[int, list[dict]] = {}
-            for m in marks_of(qa):
-                by_view.setdefault(int(m.get("view", 0)), []).append(m)
-            import cv2
-
-            for v, ms in sorted(by_view.items()):
-                fm = raw.frame_meta(v)
-                img = draw_marks(raw.rgb(v), fm, ms, graphs.get(fm["frame_id"]))
-                mname = f"{names[v]}_marks{marked}.png"
-                ok, buf = cv2.imencode(".png", np.ascontiguousarray(img[..., ::-1]))
-                if not ok:
-                    raise ValueError("marked image encoding failed")
-                _write_once(out / "image" / mname, buf.tobytes())
+            for v, png in marked_pngs(raw, items[0][1]).items():
+                mname = marked_name(base, v, marked)
+                write_new(out / "image" / mname, png)
                 if v in vs:
-                    images[vs.index(v)] = mname
+                    names[vs.index(v)] = mname
         for start in range(0, len(items), MAX_PAIRS):
-            chunk = items[start:start + MAX_PAIRS]
-            conv = []
-            for _, qa in chunk:
-                conv.append({"from": "human", "value": _strip_tokens(qa["question"])})
-                conv.append({"from": "gpt", "value": _strip_tokens(qa["answer"])})
-            rec = {"id": f"{base}:{family}:{chunk[0][0]}", "image": images, "conversations": conv}
-            if with_depth:
-                rec["depth"] = depths
-            if reasoning:
-                rec["think"] = [{"question_type": qa["family"], "template": qa["template"], "trace": qa["trace"],
-                                 "key_steps": qa.get("key_steps", []), "image_size": qa["image_size"]}
-                                for _, qa in chunk]
-            records.setdefault(family, []).append(rec)
+            records.setdefault(family, []).append(
+                _record(f"{base}:{family}:{items[start][0]}", names, [view_name(base, v, "png") for v in vs],
+                        items[start:start + MAX_PAIRS], with_depth, reasoning))
     return records
 
 
+def marked_name(stem: str, view: int, qa_index: int) -> str:
+    """The marked copy of a view for the QA pair at `qa_index` of its sample."""
+    return f"{stem}_v{view}_marks{qa_index}.png"
+
+
+def _record(rid: str, images: list[str], depths: list[str], chunk: list[tuple[int, dict]], with_depth: bool,
+            reasoning: bool) -> dict:
+    conv = []
+    for _, qa in chunk:
+        conv.append({"from": "human", "value": strip_tokens(qa["question"])})
+        conv.append({"from": "gpt", "value": strip_tokens(qa["answer"])})
+    rec = {"id": rid, "image": images, "conversations": conv}
+    if with_depth:
+        rec["depth"] = depths
+    if reasoning:
+        rec["think"] = [{"question_type": qa["family"], "template": qa["template"], "trace": qa["trace"],
+                         "key_steps": qa.get("key_steps", []), "image_size": qa["image_size"]} for _, qa in chunk]
+    return rec
+
+
 def export_refspatial(raws: Iterable[RawSample], out: Path | str, *, with_depth: bool = True) -> dict:
-    """Write the layout; returns {family: record count, "images": n, "qa_pairs": n}."""
+    """Write the layout into `out` (a fresh folder: see shards.export); returns record counts by family."""
     out = Path(out)
     (out / "image").mkdir(parents=True, exist_ok=True)
     if with_depth:
         (out / "depth").mkdir(parents=True, exist_ok=True)
     by_family: dict[str, list[dict]] = {}
     n_qa = 0
+    stems = StemRegistry()
     for raw in raws:
-        for fam, recs in export_sample(raw, out, with_depth).items():
+        for fam, recs in export_sample(raw, out, with_depth, stems).items():
             by_family.setdefault(fam, []).extend(recs)
             n_qa += sum(len(r["conversations"]) // 2 for r in recs)
     for fam, recs in sorted(by_family.items()):
-        (out / f"{safe_name(fam)}.json").write_text(json.dumps(recs, ensure_ascii=False, indent=1, sort_keys=True))
+        write_new(out / f"{safe_name(fam)}.json", json.dumps(recs, ensure_ascii=False, indent=1, sort_keys=True).encode())
     return {"records": {f: len(r) for f, r in sorted(by_family.items())}, "qa_pairs": n_qa,
             "images": len(list((out / "image").iterdir()))}
+
+
+def check_export(out: Path, raws: Iterable[RawSample]) -> list[str]:
+    """RoboRefer's loader rules, plus: every image a record names holds the bytes the shards store for
+    that sample and view, and every depth map is the one computed from that view's stored depth."""
+    out = Path(out)
+    errors = check_roborefer_layout(out)
+    depth_want: dict[str, str] = {}
+
+    def depth_hash(raw: RawSample, stem: str, v: int) -> None:
+        if (out / "depth").is_dir():
+            depth_want[view_name(stem, v, "png")] = sha256(inverse_depth_png(raw.depth(v)))
+
+    stored = stored_image_hashes(raws, depth_hash)
+    refs, deps = [], []
+    for f in sorted(out.glob("*.json")):
+        try:
+            recs = json.loads(f.read_text())
+        except ValueError:
+            continue  # reported by check_roborefer_layout
+        for rec in recs if isinstance(recs, list) else []:
+            refs += list(rec.get("image") or [])
+            deps += list(rec.get("depth") or [])
+    errors += check_image_refs(out / "image", refs, stored, str(out))
+    for d in sorted(set(deps)):
+        got = file_sha256(out / "depth" / d)
+        if depth_want.get(d) is None or got != depth_want[d]:
+            errors.append(f"{out}: depth map {d} is not the one computed from the stored depth of its view")
+    return errors
 
 
 def check_roborefer_layout(out: Path | str) -> list[str]:

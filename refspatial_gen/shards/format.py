@@ -129,7 +129,7 @@ def encode_image(rgb: np.ndarray, image_format: str) -> bytes:
     raise ValueError(f"image_format must be 'jpeg' or 'png', got {image_format!r}")
 
 
-def _view_messages(v: int, frame: Frame, t_ns: int, image_format: str) -> list[tuple[str, bytes]]:
+def _view_messages(v: int, frame: Frame, t_ns: int, image_format: str, scene: str) -> list[tuple[str, bytes]]:
     pb = _pb()
     cam = frame.camera
     fid = f"cam{v}"
@@ -159,13 +159,32 @@ def _view_messages(v: int, frame: Frame, t_ns: int, image_format: str) -> list[t
     tf.translation.x, tf.translation.y, tf.translation.z = (float(x) for x in T[:3, 3])
     tf.rotation.x, tf.rotation.y, tf.rotation.z, tf.rotation.w = _quat(T[:3, :3])
 
+    su = _scene_update(frame, fid, t_ns, scene)
+    return [(f"/{fid}/image", _ser(img)), (f"/{fid}/depth", _ser(dep)), (f"/{fid}/calibration", _ser(cal)),
+            (f"/{fid}/tf", _ser(tf)), (f"/{fid}/boxes", _ser(su)), (f"/{fid}/frame", dumps(frame.meta_json()))]
+
+
+def _scene_update(frame: Frame, fid: str, t_ns: int, scene: str):
+    """The 3D boxes of one view as a SceneUpdate that replaces the previous scene's in Foxglove.
+
+    Why: entity ids are kept across messages by the 3D panel, so ids reused between scenes, or boxes
+    that live forever, pile up boxes of earlier scenes. Each update first deletes every entity older
+    than itself (type ALL, timestamp = this sample's time: Foxglove deletes entities *earlier* than
+    it), then adds entities with ids prefixed by the sample id and a lifetime of one sample (playback
+    shows one sample per second), so scrubbing to any time shows exactly that sample's boxes.
+    """
+    pb = _pb()
     su = pb["foxglove.SceneUpdate"]()
-    boxes = [(f"{fid}/obj{o.id}", o.box, o.category, o.attributes.get("color"), 0.55) for o in frame.objects]
-    boxes += [(f"{fid}/surface/{s.id}", s.box, s.kind, None, 0.15) for s in frame.surfaces]
+    gone = su.deletions.add()
+    _stamp(gone, t_ns)
+    gone.type = 1  # SceneEntityDeletion.Type.ALL
+    boxes = [(f"{scene}/{fid}/obj{o.id}", o.box, o.category, o.attributes.get("color"), 0.55) for o in frame.objects]
+    boxes += [(f"{scene}/{fid}/surface/{s.id}", s.box, s.kind, None, 0.15) for s in frame.surfaces]
     for ent_id, box, label, colour, alpha in boxes:
         ent = su.entities.add()
         _stamp(ent, t_ns)
         ent.frame_id, ent.id, ent.frame_locked = "world", ent_id, True
+        ent.lifetime.seconds = NS_PER_SAMPLE // 1_000_000_000
         kv = ent.metadata.add()
         kv.key, kv.value = "category", label
         cube = ent.cubes.add()
@@ -175,8 +194,7 @@ def _view_messages(v: int, frame: Frame, t_ns: int, image_format: str) -> list[t
         cube.size.x, cube.size.y, cube.size.z = (float(x) for x in box.size)
         r, g, b = _BOX_RGBA.get(colour or "", (0.6, 0.6, 0.6))
         cube.color.r, cube.color.g, cube.color.b, cube.color.a = r, g, b, alpha
-    return [(f"/{fid}/image", _ser(img)), (f"/{fid}/depth", _ser(dep)), (f"/{fid}/calibration", _ser(cal)),
-            (f"/{fid}/tf", _ser(tf)), (f"/{fid}/boxes", _ser(su)), (f"/{fid}/frame", dumps(frame.meta_json()))]
+    return su
 
 
 def encode_sample(sample: Sample, seq: int, image_format: str = "jpeg") -> list[tuple[str, bytes]]:
@@ -186,7 +204,7 @@ def encode_sample(sample: Sample, seq: int, image_format: str = "jpeg") -> list[
     t_ns = (seq + 1) * NS_PER_SAMPLE
     body: list[tuple[str, bytes]] = []
     for v, frame in enumerate(sample.frames):
-        body += _view_messages(v, frame, t_ns, image_format)
+        body += _view_messages(v, frame, t_ns, image_format, sample.sample_id)
     body.append(("/graphs", dumps({"graphs": [g.to_json() for g in sample.graphs]})))
     body.append(("/qa", dumps({"qa": [q.to_json() for q in sample.qa]})))
     header = {

@@ -36,6 +36,9 @@ def build_index(shards: list[dict], run_info: dict) -> dict:
         missing = [k for k in _REQUIRED_SHARD_KEYS if k not in d]
         if missing:
             raise ValueError(f"shard entry {d.get('name', '?')!r} lacks {', '.join(missing)}")
+        problem = shard_name_problem(d["name"])
+        if problem:
+            raise ValueError(f"shard entry name {d['name']!r} {problem}")
         rows.append(_sort_deep(d))
     names = [r["name"] for r in rows]
     if len(set(names)) != len(names):
@@ -82,7 +85,30 @@ def read_index(out_dir: Path | str) -> dict:
         raise ValueError(f"{p}: index.json has no 'shards' list")
     if d.get("schema_version") != SCHEMA_VERSION:
         raise ValueError(f"{p}: schema_version {d.get('schema_version')!r} not supported (this code reads {SCHEMA_VERSION})")
+    for i, s in enumerate(d["shards"]):
+        if not isinstance(s, dict):
+            raise ValueError(f"{p}: shards[{i}] is {type(s).__name__}, not an object")
+        problem = shard_name_problem(s.get("name"))
+        if problem:
+            raise ValueError(f"{p}: shards[{i}] name {s.get('name')!r} {problem}; refusing to open it")
     return d
+
+
+def shard_name_problem(name: Any) -> str | None:
+    """Why `name` may not be opened as a shard of the index's folder (None = a plain file name there).
+
+    Why: readers join names from index.json to the dataset folder; an edited index must not make them
+    open `../../etc/passwd` or an absolute path.
+    """
+    if not isinstance(name, str) or not name:
+        return "is not a file name"
+    if "/" in name or "\\" in name or "\0" in name:
+        return "contains a path separator or NUL (must be a plain file name in the index's folder)"
+    if name in (".", "..") or name.startswith(".."):
+        return "points outside the index's folder"
+    if name.startswith("."):
+        return "is a hidden file name"
+    return None
 
 
 def shard_paths(out_dir: Path | str) -> list[Path]:

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from refspatial_gen.shards.index import INDEX_NAME, read_index
 from refspatial_gen.shards.reader import ShardError, iter_raw
+from refspatial_gen.shards.trust import note_verified
 from refspatial_gen.shards.writer import CHUNK_SIZE, PARTIAL_SUFFIX, ShardInfo, _Part, sha256_file
 
 
@@ -49,6 +50,7 @@ def check_shards(out_dir: Path | str, *, deep: bool = False) -> list[dict]:
             problems.append(_problem(p, "hash_mismatch", f"sha256 {digest[:16]}... differs from index.json's "
                                                         f"{str(s.get('sha256'))[:16]}... (file altered or replaced)"))
             continue
+        note_verified(p, digest)
         if deep:
             try:
                 n = q = 0
@@ -61,6 +63,7 @@ def check_shards(out_dir: Path | str, *, deep: bool = False) -> list[dict]:
             if (n, q) != (s.get("samples"), s.get("qa_pairs")):
                 problems.append(_problem(p, "count_mismatch", f"{n} samples / {q} QA pairs read, index.json says "
                                                              f"{s.get('samples')} / {s.get('qa_pairs')}"))
+    problems += index_count_problems(out_dir / INDEX_NAME, index)
     for p in sorted(out_dir.glob("*" + PARTIAL_SUFFIX)):
         if p.name != INDEX_NAME + PARTIAL_SUFFIX:
             problems.append(_problem(p, "unfinished", "a shard left unfinished by a crash; "
@@ -68,6 +71,33 @@ def check_shards(out_dir: Path | str, *, deep: bool = False) -> list[dict]:
     for p in sorted(out_dir.glob("*.mcap")):
         if p.name not in listed:
             problems.append(_problem(p, "unlisted", "shard file not listed in index.json"))
+    return problems
+
+
+def index_count_problems(index_path: Path, index: dict) -> list[dict]:
+    """The index's totals (and run stats, when present) must equal the sum of its shard rows.
+
+    Why: the per-shard hashes say nothing about the counts written beside them; an edited count would
+    otherwise pass every check and mislead `stats` and the stream's epoch plan.
+    """
+    rows = index["shards"]
+    problems = []
+    try:
+        sums = {"shards": len(rows), "samples": sum(int(r["samples"]) for r in rows),
+                "qa_pairs": sum(int(r["qa_pairs"]) for r in rows), "bytes": sum(int(r["bytes"]) for r in rows)}
+    except (KeyError, TypeError, ValueError) as e:
+        return [_problem(index_path, "index_unreadable", f"a shard row lacks a numeric count ({e})")]
+    totals = index.get("totals") or {}
+    for k, v in sums.items():
+        if totals.get(k) != v:
+            problems.append(_problem(index_path, "count_mismatch", f"totals.{k} is {totals.get(k)!r}, "
+                                                                   f"the shard rows add up to {v}"))
+    stats = index.get("stats")
+    if isinstance(stats, dict):
+        for k in ("samples", "qa_pairs"):
+            if k in stats and stats[k] != sums[k]:
+                problems.append(_problem(index_path, "count_mismatch", f"stats.{k} is {stats[k]!r}, "
+                                                                       f"the shard rows add up to {sums[k]}"))
     return problems
 
 

@@ -64,3 +64,28 @@ def draw_marks(rgb: np.ndarray, frame_meta: dict, marks: list[dict], graph: dict
         cv2.putText(img, label, org, cv2.FONT_HERSHEY_SIMPLEX, 0.5 * scale * 1.4, (255, 255, 255), thick + 2, cv2.LINE_AA)
         cv2.putText(img, label, org, cv2.FONT_HERSHEY_SIMPLEX, 0.5 * scale * 1.4, colour, thick, cv2.LINE_AA)
     return img
+
+
+def marked_pngs(raw, qa: dict) -> dict[int, bytes]:
+    """{view: PNG bytes} of the marked copies a visual-choice QA pair needs (empty when it has no marks).
+
+    `raw` is a shards.format.RawSample; marks are grouped by their `view` (default 0).
+    """
+    import cv2
+
+    marks = marks_of(qa)
+    if not marks:
+        return {}
+    graphs = {g["frame_id"]: g for g in raw.graphs_json()}
+    by_view: dict[int, list[dict]] = {}
+    for m in marks:
+        by_view.setdefault(int(m.get("view", 0)), []).append(m)
+    out = {}
+    for v, ms in sorted(by_view.items()):
+        fm = raw.frame_meta(v)
+        img = draw_marks(raw.rgb(v), fm, ms, graphs.get(fm["frame_id"]))
+        ok, buf = cv2.imencode(".png", np.ascontiguousarray(img[..., ::-1]))
+        if not ok:
+            raise ValueError("marked image encoding failed")
+        out[v] = buf.tobytes()
+    return out

@@ -11,12 +11,17 @@ from __future__ import annotations
 
 import mmap
 import struct
-import zlib
 from pathlib import Path
 from typing import Iterator
 
+try:  # the same CRC-32 as zlib, about 5x faster (ISA-L): checking every CRC costs little next to zstd
+    from isal.isal_zlib import crc32
+except ImportError:  # pragma: no cover - isal is a pinned dependency; zlib gives identical values
+    from zlib import crc32
+
 MAGIC = b"\x89MCAP0\r\n"
-OP_HEADER, OP_FOOTER, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 0x01, 0x02, 0x04, 0x05, 0x06
+OP_HEADER, OP_FOOTER, OP_CHANNEL, OP_MESSAGE, OP_CHUNK, OP_DATA_END = 0x01, 0x02, 0x04, 0x05, 0x06, 0x0F
+FOOTER_LEN = 9 + 20  # opcode, length, summary_start, summary_offset_start, summary_crc
 _U16, _U32, _U64 = struct.Struct("<H"), struct.Struct("<I"), struct.Struct("<Q")
 _REC = struct.Struct("<BQ")
 _MSG = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time
@@ -70,10 +75,22 @@ def _inner(data: bytes, channels: dict[int, str]) -> Iterator[tuple[str, int, by
         pos = body + length
 
 
-def scan(path: Path | str, *, validate_crcs: bool = False) -> Iterator[tuple[str, int, bytes] | None]:
+def scan(path: Path | str, *, validate_crcs: bool = True) -> Iterator[tuple[str, int, bytes] | None]:
+    """See `_scan`; a field that points outside its record (struct.error) is reported as corruption."""
+    try:
+        yield from _scan(path, validate_crcs)
+    except (struct.error, UnicodeDecodeError) as e:
+        raise ScanError("corrupt", f"a malformed record ({e})") from None
+
+
+def _scan(path: Path | str, validate_crcs: bool) -> Iterator[tuple[str, int, bytes] | None]:
     """Yield (topic, sequence, data) for every message in file order, then None once the footer is read.
 
-    Raises ScanError at the first problem (after yielding everything before it).
+    Raises ScanError at the first problem (after yielding everything before it). With `validate_crcs`
+    (the default, as the official reader's `validate_crcs=True`) every CRC the file carries is checked:
+    each chunk's CRC before any of its messages is yielded, then the data-section CRC (DataEnd) and the
+    summary CRC (Footer) when the end is reached, so a flipped byte anywhere in the file is reported.
+    A CRC of 0 means "not computed" (MCAP spec) and is not checked.
     """
     with open(path, "rb") as f:
         size = f.seek(0, 2)
@@ -116,7 +133,7 @@ def scan(path: Path | str, *, validate_crcs: bool = False) -> Iterator[tuple[str
                         raise ScanError("corrupt", f"unsupported chunk compression {comp!r}")
                     if len(data) != usize:
                         raise ScanError("corrupt", f"chunk at byte {pos} has {len(data)} bytes, expected {usize}")
-                    if validate_crcs and crc and zlib.crc32(data) != crc:
+                    if validate_crcs and crc and crc32(data) != crc:
                         raise ScanError("corrupt", f"chunk at byte {pos} fails its CRC check")
                     yield from _inner(data, channels)
                 elif op == OP_CHANNEL:
@@ -124,12 +141,58 @@ def scan(path: Path | str, *, validate_crcs: bool = False) -> Iterator[tuple[str
                     channels[cid] = topic
                 elif op == OP_MESSAGE:
                     yield from _inner(m[pos: body + length], channels)
+                elif op == OP_DATA_END:
+                    if validate_crcs:
+                        _check_data_crc(m, pos, _U32.unpack_from(m, body)[0] if length >= 4 else 0)
+                    _check_footer(m, size, body + length, validate_crcs)
+                    yield None
+                    return
                 elif op == OP_FOOTER:
+                    if validate_crcs:
+                        raise ScanError("corrupt", f"footer at byte {pos} without a DataEnd record before it")
                     if m[body + length: body + length + 8] != MAGIC:
                         raise ScanError("truncated", "the file ends inside the closing magic bytes")
                     yield None
                     return
                 pos = body + length
+
+
+def _check_data_crc(m: mmap.mmap, data_end: int, crc: int) -> None:
+    """The DataEnd CRC covers every byte from the magic up to the DataEnd record."""
+    if crc:
+        view = memoryview(m)
+        try:
+            got = crc32(view[:data_end])
+        finally:
+            view.release()
+        if got != crc:
+            raise ScanError("corrupt", f"data section fails its CRC check (DataEnd at byte {data_end})")
+
+
+def _check_footer(m: mmap.mmap, size: int, after_data: int, validate_crcs: bool) -> None:
+    """After DataEnd come the summary, the footer and the closing magic: find the footer from the end
+    (the summary is not parsed, so damage there cannot derail the scan), check that the summary starts
+    where the data section ends, and check the summary CRC."""
+    if size < 8 + FOOTER_LEN + 8 or m[size - 8: size] != MAGIC:
+        raise ScanError("truncated", "the file ends before the MCAP footer")
+    fpos = size - 8 - FOOTER_LEN
+    op, length = _REC.unpack_from(m, fpos)
+    if op != OP_FOOTER or length != 20:
+        raise ScanError("corrupt", f"no footer record at byte {fpos}")
+    start, _offsets, crc = struct.unpack_from("<QQI", m, fpos + 9)
+    if (start or fpos) != after_data:
+        raise ScanError("corrupt", f"the summary should start at byte {after_data}, the footer says {start or fpos}")
+    if validate_crcs and crc:
+        lo = start if start else fpos
+        if not 0 < lo <= fpos:
+            raise ScanError("corrupt", f"footer names summary start {start}, outside the file")
+        view = memoryview(m)
+        try:
+            got = crc32(view[lo: fpos + 9 + 16])
+        finally:
+            view.release()
+        if got != crc:
+            raise ScanError("corrupt", "summary section fails its CRC check")
 
 
 def _head(f, size: int) -> bytes:

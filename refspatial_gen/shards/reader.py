@@ -23,20 +23,31 @@ class ShardError(ValueError):
         super().__init__(f"{self.path}: {reason}")
 
 
-def iter_raw(path: Path | str, *, require_footer: bool = True, validate_crcs: bool = False,
-             keep_topic: Callable[[str], bool] | None = None) -> Iterator[RawSample]:
+def iter_raw(path: Path | str, *, require_footer: bool = True, validate_crcs: bool = True,
+             check_index: bool = True, keep_topic: Callable[[str], bool] | None = None) -> Iterator[RawSample]:
     """Yield each sample's messages grouped by sequence number, in file order.
 
     With `require_footer=False` (salvage), stops quietly at the first damaged record and yields only
     complete samples; otherwise a damaged or truncated file raises ShardError after the last good sample.
     `keep_topic` limits which messages' bytes are kept (others are counted for completeness only).
-    `validate_crcs` checks each chunk's CRC (sha256 against index.json is the main integrity check).
+    `validate_crcs` checks every MCAP CRC (chunks before their messages are yielded; data section and
+    summary at the end). `check_index` (finished shards only) first checks the file's size and sha256
+    against the index.json beside it, once per process (`shards.trust`), so nothing is yielded from
+    an altered shard.
     """
     from refspatial_gen.shards.mcapscan import ScanError, scan
+    from refspatial_gen.shards.trust import IntegrityError, verify_against_index
 
     path = Path(path)
     if not path.is_file():
         raise ShardError(path, "no such file" if not path.exists() else "not a regular file")
+    if check_index and require_footer:
+        try:
+            verify_against_index(path)
+        except IntegrityError as e:
+            raise ShardError(path, str(e)) from None
+        except OSError as e:
+            raise ShardError(path, f"cannot read: {e.strerror or e}") from None
     cur_seq: int | None = None
     cur: dict[str, bytes] = {}
     footer = False

@@ -66,7 +66,7 @@ class _Part:
         self.tmp = self.path.with_name(self.path.name + tmp_suffix)
         self.tmp.parent.mkdir(parents=True, exist_ok=True)
         self.f = open(self.tmp, "wb")
-        self.w = Writer(self.f, chunk_size=chunk_size, compression=CompressionType.ZSTD)
+        self.w = Writer(self.f, chunk_size=chunk_size, compression=CompressionType.ZSTD, enable_data_crcs=True)
         self.w.start(profile=PROFILE)
         self.channels: dict[str, int] = {}
         self.schemas: dict[str, int] = {}

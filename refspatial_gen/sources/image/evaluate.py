@@ -68,6 +68,7 @@ def compare_sunrgbd(root: str | Path, config: dict[str, Any] | None = None, seed
     errors, per_object, frames = [], [], {}
     agree = {r: [0, 0] for r in RELATIONS}
     gravity_err = []
+    per_frame: dict[str, dict[str, Any]] = {}
     for iid in coll.ids():
         frame = build_frame(coll, coll.images[iid], np.random.default_rng(seed), cfg)
         frames[iid] = frame
@@ -77,6 +78,7 @@ def compare_sunrgbd(root: str | Path, config: dict[str, Any] | None = None, seed
         up_gt = R_gt @ np.array([0.0, 0.0, 1.0])
         gravity_err.append(float(np.degrees(np.arccos(np.clip(up_gt @ (T[:3, :3] @ [0.0, 0.0, 1.0]), -1, 1)))))
         objs = frame.objects
+        mine = [0, 0]
         for o in objs:
             g = gts[int(o.provenance["annotation_id"])]
             c_lift = cam.world_to_cam(o.box.center)[0]
@@ -96,6 +98,11 @@ def compare_sunrgbd(root: str | Path, config: dict[str, Any] | None = None, seed
                     if la[r] != 0 and ga[r] != 0:
                         agree[r][1] += 1
                         agree[r][0] += int(la[r] == ga[r])
+                        mine[1] += 1
+                        mine[0] += int(la[r] == ga[r])
+        per_frame[iid] = {"objects": len(objs), "annotated": len(gts), "relation_pairs": mine[1],
+                          "relation_agreement": round(mine[0] / mine[1], 4) if mine[1] else None,
+                          "gravity_error_deg": round(gravity_err[-1], 2)}
     total = sum(v[1] for v in agree.values())
     ok = sum(v[0] for v in agree.values())
     return {
@@ -104,4 +111,5 @@ def compare_sunrgbd(root: str | Path, config: dict[str, Any] | None = None, seed
         "relation_pairs": total, "relation_agreement": round(ok / total, 4) if total else None,
         "by_relation": {r: {"agree": a, "decided_both": n} for r, (a, n) in agree.items()},
         "gravity_error_deg": [round(g, 2) for g in gravity_err], "per_object": per_object, "frames": frames,
+        "per_frame": per_frame,
     }

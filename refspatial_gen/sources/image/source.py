@@ -48,6 +48,12 @@ def _depth_check(v: Any) -> str | None:
     return check_options(name, {k: x for k, x in v.items() if k != "estimator"})
 
 
+def _pair_check(v: Any) -> str | None:
+    if not (isinstance(v, list) and len(v) == 2 and all(isinstance(x, (int, float)) for x in v) and v[0] < v[1]):
+        return "must be [lo, hi] with lo < hi"
+    return None
+
+
 CONFIG_FIELDS: dict[str, Field] = {
     "format": Field(str, default="auto", choices=FORMATS, doc="annotation format of the input folder"),
     "annotations": Field(str, default=None, doc="annotation file inside the input folder (default: detected)"),
@@ -76,6 +82,20 @@ CONFIG_FIELDS: dict[str, Field] = {
                                      doc="geometric depth: keep objects cut by the bottom edge (contact unseen)"),
     "min_objects": Field(int, default=2, min=1),
     "max_objects": Field(int, default=40, min=1),
+    # truth checks (docs/quality.md): the photo's camera fitted to its objects, sizes against their ranges
+    "fit_camera": Field(bool, default=True, doc="geometric depth: fit camera height and pitch per photo to the "
+                                               "ground-standing objects of known size (the camera above is the prior)"),
+    "fit_pitch_range_deg": Field(list, default=[-15.0, 45.0], check=_pair_check, doc="pitch search range (deg)"),
+    "fit_height_range": Field(list, default=[0.3, 30.0], check=_pair_check, doc="camera height search range (m)"),
+    "fit_min_inlier_share": Field(float, default=0.6, min=0.0, max=1.0,
+                                  doc="share of those objects that must fit their range for a reliable metric scale"),
+    "fit_min_anchors": Field(int, default=2, min=1, doc="agreeing objects needed before the metric scale counts "
+                                                         "as verified (one object fits any camera)"),
+    "size_check": Field(bool, default=True, doc="remove objects whose lifted box is outside their category's range"),
+    "size_tolerance": Field(float, default=0.0, min=0.0, max=1.0, doc="ranges are widened by this fraction"),
+    "max_box_overlap": Field(float, default=0.25, min=0.0, max=1.0,
+                             doc="geometric depth: two boxes sharing more of the smaller one's volume pass through "
+                                 "each other; the occluded one is removed (1 = off)"),
 }
 
 
@@ -250,6 +270,22 @@ def build_frame(coll: Collection, rec: ImageRecord, rng: np.random.Generator, cf
     # the camera prior: the depth section's own camera_height/pitch_deg win over the source-level prior
     cam_h = float(dopts.get("camera_height") or cfg["camera_height"])
     pitch = float(np.deg2rad(dopts["pitch_deg"] if dopts.get("pitch_deg") is not None else cfg["camera_pitch_deg"]))
+    truth: dict[str, int] = {}
+    metric_scale: dict[str, Any] = {"source": "measured", "status": "consistent", "reliable": True}
+    if est_name == "geometric":  # the photo's own camera, fitted to its objects of known size
+        from refspatial_gen.sources.image.truthcheck import fit_photo_camera
+
+        # every annotated object may testify, also those too small to become objects (distant people
+        # near the horizon are what pins the pitch down)
+        fit = fit_photo_camera([c for c in cands if c.reason in (None, "too_small")], H, W, intr.fy, intr.cy,
+                               cam_h, pitch, cfg)
+        cam_h, pitch = fit.camera_height, fit.pitch
+        metric_scale = fit.meta()
+    elif est_name != "provided":
+        metric_scale = {"source": est_name, "status": "unverified", "reliable": False}
+    if not metric_scale["reliable"]:
+        key = f"metric_scale_{metric_scale['status']}"
+        truth[key] = truth.get(key, 0) + 1
     depth_path = None
     if est_name == "provided":
         depth_path = str(rec.depth_file if rec.depth_file is not None else est.resolve_path(rec.file))
@@ -271,6 +307,11 @@ def build_frame(coll: Collection, rec: ImageRecord, rng: np.random.Generator, cf
         note = res.meta.get("objects", {}).get(str(ids[id(c)]))
         if note is not None:
             c.provenance["contact"] = note.get("contact")
+            kind, _, other = str(note.get("contact")).partition(":")
+            if kind in ("support", "behind") and other.isdigit():  # the estimator's id -> the annotation
+                o = live[int(other) - 1]
+                c.provenance["rests_on" if kind == "support" else "behind"] = {"annotation_id": o.ann_id,
+                                                                               "category": o.category}
             if note.get("truncated"):
                 c.provenance["contact_truncated"] = True
                 if not cfg["keep_truncated_contacts"]:
@@ -348,6 +389,10 @@ def build_frame(coll: Collection, rec: ImageRecord, rng: np.random.Generator, cf
             out.box, n_fit = fit_to_box2d(out.box, c.bbox2d, cam)
             out.notes.update(n_fit)
             pending.append(c)
+        if str(c.provenance.get("contact", "")).startswith("behind:") and out.box.bottom_z > 0:
+            # its foot is hidden behind the occluder: it stands on the ground (amodal completion)
+            out.box = _with_bottom(out.box, 0.0)
+            out.notes["occluded_completed"] = True
         c.box = out.box
         c.provenance.update({k: v for k, v in out.notes.items()})
         c.provenance["points"] = out.points_used
@@ -366,6 +411,13 @@ def build_frame(coll: Collection, rec: ImageRecord, rng: np.random.Generator, cf
         else:
             c.provenance["mask"] = "segmentation" if c.segmentation else "box"
     _complete_box_annotations([c for c in pending if c.reason is None], depth, cam, support_z, params)
+    from refspatial_gen.sources.image.truthcheck import check_sizes
+
+    check_sizes(cands, cfg, est_name != "geometric", truth)
+    if est_name == "geometric" and cfg["max_box_overlap"] < 1.0:
+        from refspatial_gen.sources.image.truthcheck import check_interpenetration
+
+        check_interpenetration(cands, float(cfg["max_box_overlap"]), truth)
     F.instances_not_spread(cands, cfg["min_instance_spread"])
     F.too_many_instances(cands, cfg["max_instances_per_category"])
     if cfg["complete_categories"]:
@@ -399,9 +451,17 @@ def build_frame(coll: Collection, rec: ImageRecord, rng: np.random.Generator, cf
         "dropped_object_list": [{"annotation_id": c.ann_id, "category": c.category, "reason": c.reason}
                                 for c in cands if c.reason is not None],
         "crowd_categories": sorted(crowd), "ignored_categories": dict(sorted(ignored.items())),
+        "metric_scale": metric_scale, "truth": dict(sorted(truth.items())),
     }
     fid = unit_key(rec.image_id)  # no folder name: a renamed or moved copy gives the same bytes
     return Frame(fid, rgb, depth, cam, objects, surfaces, source="image", scene_id=fid, meta=_jsonable(meta))
+
+
+def _with_bottom(box: Box3D, bottom: float) -> Box3D:
+    c, s = box.center.copy(), box.size.copy()
+    top = box.top_z
+    c[2], s[2] = (top + bottom) / 2, top - bottom
+    return Box3D(c, s, box.rotation)
 
 
 def _box_masks(live: list[F.Candidate], depth: np.ndarray, cam: Camera, support_z: list[float],

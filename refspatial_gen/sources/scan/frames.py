@@ -30,7 +30,7 @@ from refspatial_gen.sources.scan.view import ScanBox, ScanView
 DEFAULTS: dict[str, Any] = {
     "occlusion_tolerance": 0.025, "mask_pad": 0.01, "floor_margin": 0.03, "min_mask_pixels": 16,
     "min_visible_fraction": 0.0, "min_visible_objects": 1, "blur_threshold": 0.0, "max_width": 0,
-    "splat_scale": 1.0,
+    "splat_scale": 1.0, "instance_labels": True, "withhold_unexplained_floor": True, "unexplained_min_points": 20,
 }
 
 SUPPORT_KINDS = {
@@ -267,6 +267,26 @@ def object_surfaces(objects: list[ObjectInstance]) -> list[SupportSurface]:
     return out
 
 
+def instance_map(view: ScanView, owner: np.ndarray | None) -> np.ndarray | None:
+    """(H, W) instance id of the point each pixel shows (-1: no point), when the view has labels."""
+    if owner is None or view.point_labels is None or not view.box_instance:
+        return None
+    lab = np.asarray(view.point_labels, np.int64)
+    return np.where(owner >= 0, lab[np.clip(owner, 0, len(lab) - 1)], -1)
+
+
+def _withhold_unexplained(view: ScanView, cam: Camera, depth: np.ndarray, floor_z: float,
+                          config: dict[str, Any]) -> int:
+    """Unknown depth on the floor under unannotated things standing on it (occupancy.py), in place."""
+    from refspatial_gen.sources.scan.occupancy import floor_footprints, unexplained_points, withhold_floor
+
+    labels = view.point_labels if bool(cfg(config, "instance_labels")) else None
+    structural = set(view.meta.get("structural_instances", []))
+    un = unexplained_points(view.points, view.boxes, floor_z, labels, view.box_instance, structural)
+    fps = floor_footprints(view.points, un, floor_z, point_spacing(view.points), int(cfg(config, "unexplained_min_points")))
+    return withhold_floor(depth, cam, fps, floor_z)
+
+
 def view_to_frame(view: ScanView, config: dict[str, Any]) -> Frame:
     """Check one view and turn it into a Frame with visible objects; raise DropUnit with a reason otherwise."""
     cam = view.camera
@@ -289,11 +309,12 @@ def view_to_frame(view: ScanView, config: dict[str, Any]) -> Frame:
                 sb.provenance["bbox2d_annotated"] = [round(b[0] * sx, 3), round(b[1] * sy, 3), round(b[2] * sx, 3), round(b[3] * sy, 3)]
     meta: dict[str, Any] = {"reader": view.reader, "view_id": view.view_id, "gravity_source": view.gravity_source,
                             **view.meta}
+    owner = None  # per pixel, the index of the point it shows (point clouds only)
     if depth is None:
         if view.points is None or len(view.points) == 0:
             raise DropUnit("depth_missing", "no depth map and no point cloud to derive one from")
         spacing = point_spacing(view.points)
-        depth = splat_depth(view.points, cam, spacing, float(cfg(config, "splat_scale")))
+        depth, owner = splat_depth(view.points, cam, spacing, float(cfg(config, "splat_scale")), with_owner=True)
         meta["depth_source"] = "splatted_points"
         meta["point_spacing_m"] = round(spacing, 4)
         check_depth(depth, rgb.shape[:2])
@@ -319,22 +340,33 @@ def view_to_frame(view: ScanView, config: dict[str, Any]) -> Frame:
             visible.append((sb, vis))
     # a pixel whose depth point lies in several boxes (a mug resting in the padded top of a table box)
     # belongs to the smallest of them: masks are exclusive, like a segmentation
-    owner = np.zeros((cam.height, cam.width), np.int64)
+    box_owner = np.zeros((cam.height, cam.width), np.int64)
     for sb, vis in sorted(visible, key=lambda x: (-x[0].box.volume, x[0].id)):
-        owner[vis["claim"]] = sb.id
+        box_owner[vis["claim"]] = sb.id
+    label_map = instance_map(view, owner) if bool(cfg(config, "instance_labels")) else None
+    truth: dict[str, int] = {}
     for sb, vis in visible:
-        m = vis["mask"] & (owner == sb.id)
+        m = vis["mask"] & (box_owner == sb.id)
+        trimmed = 0
+        inst = view.box_instance.get(sb.id) if label_map is not None else None
+        if inst is not None:  # labelled points: only the pixels showing this box's own instance
+            other = m & (label_map >= 0) & (label_map != inst)
+            trimmed = int(other.sum())
+            m &= ~other
         area = int(m.sum())
         cat = category_phrase(sb.category)
         if area < int(cfg(config, "min_mask_pixels")) or vis["visible_fraction"] < float(cfg(config, "min_visible_fraction")):
             if area > 0:
                 excluded.append({"id": sb.id, "category": cat, "visible_pixels": area,
                                  "visible_fraction": round(float(vis["visible_fraction"]), 4)})
+            if trimmed and area < int(cfg(config, "min_mask_pixels")):
+                truth["mask_of_other_instances"] = truth.get("mask_of_other_instances", 0) + 1
             continue
         ys, xs = np.nonzero(m)
         prov = {"source": "scan", "reader": view.reader, "annotation_id": sb.id, "raw_category": sb.category,
                 "visible_pixels": area, "pixels_given_to_smaller_boxes": int(vis["visible_pixels"]) - area, "occluded_pixels": vis["occluded_pixels"],
                 "see_through_pixels": vis["see_through_pixels"], "fraction_method": vis["fraction_method"],
+                **({"pixels_of_other_instances": trimmed, "instance": int(inst)} if inst is not None else {}),
                 **sb.provenance}
         objects.append(ObjectInstance(
             id=int(sb.id), category=cat, box=sb.box, mask=RLE.encode(m),
@@ -350,7 +382,11 @@ def view_to_frame(view: ScanView, config: dict[str, Any]) -> Frame:
         meta["floor_source"] = how
         if floor is not None:
             surfaces.append(floor)
+            if view.points is not None and bool(cfg(config, "withhold_unexplained_floor")):
+                meta["unexplained_floor_pixels"] = _withhold_unexplained(view, cam, depth, floor.box.top_z, config)
         surfaces.extend(object_surfaces(objects))
+    if truth:
+        meta["truth"] = truth
     frame_id = f"scan/{view.reader}/{view.scene_id}/{view.view_id}"
     frame = Frame(frame_id, np.ascontiguousarray(rgb), depth, cam, objects, surfaces, source="scan",
                   scene_id=f"{view.reader}/{view.scene_id}", meta=meta)

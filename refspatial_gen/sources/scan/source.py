@@ -36,6 +36,11 @@ CONFIG_FIELDS: dict[str, Field] = {
     "floor_margin": Field(float, default=0.03, min=0.0, doc="metres above a box bottom not counted as the object"),
     "max_width": Field(int, default=640, min=0, doc="downscale wider images to this width (0 = keep)"),
     "splat_scale": Field(float, default=1.0, min=0.1, doc="splat half-size in point spacings (point-cloud depth)"),
+    "instance_labels": Field(bool, default=True, doc="use per-point instance labels when the scan has them: a "
+                                                     "box's mask keeps only pixels showing its own instance"),
+    "withhold_unexplained_floor": Field(bool, default=True, doc="point clouds: unknown depth on the floor under "
+                                                                "unannotated things standing on it (no free space there)"),
+    "unexplained_min_points": Field(int, default=20, min=3, doc="low unexplained points that make such a footprint"),
     "depth_encoding": Field(str, default="auto", choices=("auto", *DEPTH_ENCODINGS)),
     "intrinsics": Field(dict, default=None, doc="{width,height,fx,fy,cx,cy} (OpenCV pixel centres) for trajectories without them"),
     "boxes_file": Field(str, default=None, doc="side file of boxes (generic schema) for readers without boxes"),

@@ -25,8 +25,10 @@ def point_spacing(points: np.ndarray, sample: int = 4000) -> float:
 
 
 def splat_depth(points: np.ndarray, cam: Camera, spacing: float, scale: float = 0.75,
-                max_radius: int = 12, near: float = 0.05) -> np.ndarray:
-    """World points -> float32 z-depth map (0 = no point). Splat half-size = scale * spacing * f / z pixels."""
+                max_radius: int = 12, near: float = 0.05, with_owner: bool = False):
+    """World points -> float32 z-depth map (0 = no point). Splat half-size = scale * spacing * f / z pixels.
+    With `with_owner`, also the (H, W) int64 index of the point each pixel shows (-1 = none): per-point
+    instance labels project into the frame through it, with the same z-buffer as the depth."""
     H, W = cam.height, cam.width
     pc = cam.world_to_cam(points)
     z = pc[:, 2]
@@ -39,7 +41,8 @@ def splat_depth(points: np.ndarray, cam: Camera, spacing: float, scale: float = 
     r = np.clip(np.round(scale * spacing * f / z), 0, max_radius).astype(np.int64)
     ok = (u >= -max_radius) & (u < W + max_radius) & (v >= -max_radius) & (v < H + max_radius)
     u, v, z, r = u[ok], v[ok], z[ok], r[ok]
-    idx_all, z_all = [], []
+    pid = np.flatnonzero(keep)[ok]
+    idx_all, z_all, p_all = [], [], []
     for rad in np.unique(r):
         sel = r == rad
         off = np.arange(-rad, rad + 1)
@@ -50,13 +53,19 @@ def splat_depth(points: np.ndarray, cam: Camera, spacing: float, scale: float = 
         inside = (uu >= 0) & (uu < W) & (vv >= 0) & (vv < H)
         idx_all.append(vv[inside] * W + uu[inside])
         z_all.append(zz[inside])
+        p_all.append(np.repeat(pid[sel], du.size)[inside])
     depth = np.zeros(H * W, np.float32)
+    owner = np.full(H * W, -1, np.int64)
     if idx_all:
         idx = np.concatenate(idx_all)
         zs = np.concatenate(z_all)
-        order = np.lexsort((zs, idx))
-        idx, zs = idx[order], zs[order]
+        ps = np.concatenate(p_all)
+        order = np.lexsort((ps, zs, idx))  # nearest first; ties to the lower point index (deterministic)
+        idx, zs, ps = idx[order], zs[order], ps[order]
         first = np.ones(idx.size, bool)
         first[1:] = idx[1:] != idx[:-1]
         depth[idx[first]] = zs[first]
+        owner[idx[first]] = ps[first]
+    if with_owner:
+        return depth.reshape(H, W), owner.reshape(H, W)
     return depth.reshape(H, W)

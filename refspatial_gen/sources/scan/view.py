@@ -51,6 +51,8 @@ class ScanView:
     boxes_per_frame: bool = False
     points: np.ndarray | None = None
     meta: dict[str, Any] = field(default_factory=dict)
+    point_labels: np.ndarray | None = None  # per-point instance id (0 = none), aligned with `points`
+    box_instance: dict[int, int] = field(default_factory=dict)  # box id -> its instance id in point_labels
 
 
 def boxes_to_world(boxes: list[ScanBox], T: np.ndarray) -> list[ScanBox]:

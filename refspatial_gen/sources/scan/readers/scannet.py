@@ -32,6 +32,24 @@ def _scene(root: str) -> tuple[dict, np.ndarray]:
     return meta, pts
 
 
+@lru_cache(maxsize=4)
+def _labels(root: str, n_points: int) -> tuple[np.ndarray | None, frozenset, str]:
+    """Per-point instance labels when the scene has them (sources/scan/labels.py): (labels, ids of
+    wall/floor/ceiling instances, note), or (None, {}, why)."""
+    from refspatial_gen.sources.scan.labels import ply_vertex_labels, scannet_labels
+
+    meta = read_json(Path(root) / "scene.json")
+    structural: set[int] = set()
+    lab, note = scannet_labels(Path(root), meta, n_points, structural)
+    if lab is None:
+        ply = Path(root) / str(meta.get("points_file", "points_raw.ply"))
+        if ply.is_file():
+            lab2, note2 = ply_vertex_labels(ply, n_points)
+            if lab2 is not None:
+                return lab2, frozenset(), note2
+    return lab, frozenset(structural), note
+
+
 class ScanNetReader:
     name = "scannet"
 
@@ -70,6 +88,18 @@ class ScanNetReader:
                                  provenance={"annotation": "scannet", "nyu40_name": o.get("nyu40_name")}))
         if len(pts) == 0:
             raise DropUnit("points_missing", f"{root}: no point cloud to derive depth from")
-        return ScanView("scannet", str(meta.get("scene_id", root.name)), view_id, rgb, None, cam, boxes,
+        view = ScanView("scannet", str(meta.get("scene_id", root.name)), view_id, rgb, None, cam, boxes,
                         "scan_z_up", boxes_per_frame=False, points=pts,
                         meta={"intrinsics_source": "K_color"})
+        if (config or {}).get("instance_labels", True):
+            from refspatial_gen.sources.scan.labels import box_instances
+
+            labels, structural, note = _labels(str(root), len(pts))
+            view.meta["instance_labels"] = note if labels is not None else f"none ({note})"
+            if labels is not None:
+                explicit = {int(o["id"]) + 1: (int(o["instance_id"]) if "instance_id" in o else int(o["object_id"]) + 1)
+                            for o in meta.get("objects", []) if "instance_id" in o or "object_id" in o}
+                view.point_labels = labels
+                view.box_instance = box_instances(boxes, pts, labels, explicit)
+                view.meta["structural_instances"] = sorted(structural)
+        return view
