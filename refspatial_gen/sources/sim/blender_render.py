@@ -41,7 +41,7 @@ SETTINGS: dict[str, Field] = {
     "light_bounces": Field(int, default=4, min=0, max=64, doc="Cycles max bounces (diffuse/glossy capped by it)"),
     "threads": Field(int, default=0, min=0, max=1024, doc="Cycles CPU threads; 0 = all cores (same bytes either way)"),
     "seed": Field(int, default=0, min=0, max=2**31 - 1, doc="Cycles sampling seed (fixed: same scene, same bytes)"),
-    "view_transform": Field(str, default="AgX", choices=("AgX", "Standard", "Filmic", "Khronos PBR Neutral"),
+    "view_transform": Field(str, default="Khronos PBR Neutral", choices=("AgX", "Standard", "Filmic", "Khronos PBR Neutral"),
                             doc="Blender colour management view transform"),
     "exposure": Field(float, default=0.0, min=-10, max=10, doc="exposure in stops"),
     "light_gain": Field(float, default=1.0, min=0, max=100, doc="multiplies every light's power (after RefSpatial's 0.6-1.4x)"),

@@ -230,7 +230,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.serve:
         return serve()
     s = {"device": "cpu", "samples": 32, "denoiser": "oidn", "light_bounces": 4, "threads": 0, "seed": 0,
-         "view_transform": "AgX", "exposure": 0.0, "light_gain": 1.0, "ambient_gain": 1.0} | json.loads(args.settings)
+         "view_transform": "Khronos PBR Neutral", "exposure": 0.0, "light_gain": 1.0, "ambient_gain": 1.0} | json.loads(args.settings)
     print(json.dumps(render_scene(args.scene, args.out, s)))
     return 0
 
