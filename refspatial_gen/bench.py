@@ -5,7 +5,9 @@ rendered by Blender Cycles (frames/s per core, agreement with MuJoCo's depth and
 from cached scene graphs; the image source per image; streaming reads vs. WebDataset; read throughput
 of every export format on the same samples; and the run executor's scaling from 1 to 2 workers and its
 memory when the number of scenes grows 10x. Opt-in (`--rewrite`, `make bench REWRITE=1`): LLM rewrites
-per second and the share accepted against the local llama.cpp server (refspatial_gen/rewrite/bench.py).
+per second and the share accepted against the local llama.cpp server (refspatial_gen/rewrite/bench.py);
+(`--perception`, `make bench BENCH_ARGS=--perception`): unlabelled photos through full-size perception
+models with random weights (perception/bench.py).
 """
 
 from __future__ import annotations
@@ -203,6 +205,17 @@ def bench_eval(scenes: int, work: Path) -> dict[str, Any]:
             "score_qa_per_s": round(len(items) / (t2 - t1), 1), "gold_success": sum(r["success"] for r in recs) / len(recs)}
 
 
+def bench_perception(n: int, families: str) -> dict[str, Any]:
+    """Opt-in (`--perception`, `--only perception`): photos through full-size random perception models."""
+    from refspatial_gen.perception.bench import DEFAULT_FAMILIES, per_image
+
+    folder = SHARED / "coco_tiny_train2017"
+    if not folder.is_dir():
+        return {"skipped": f"{folder} not found"}
+    fams = tuple(families.split(",")) if families else DEFAULT_FAMILIES
+    return per_image(folder, n, fams)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m refspatial_gen.bench", description=__doc__)
     ap.add_argument("--scenes", type=int, default=24, help="scenes for the simulated pipeline")
@@ -210,13 +223,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--mem-scenes", type=int, default=16, help="scenes for the memory run (and 10x as many)")
     ap.add_argument("--blender-scenes", type=int, default=4, dest="blender_scenes", help="scenes for the Blender renderer")
     ap.add_argument("--only", nargs="*", default=None,
-                    choices=["sim", "blender", "qa", "image", "stream", "formats", "scale", "eval", "rewrite"])
+                    choices=["sim", "blender", "qa", "image", "stream", "formats", "scale", "eval", "manifest", "rewrite",
+                             "perception"])
     ap.add_argument("--rewrite", action="store_true", help="add the (slow) LLM rewrite section")
     ap.add_argument("--rewrite-scenes", type=int, default=2, help="default-recipe scenes whose pairs are rewritten")
+    ap.add_argument("--perception", action="store_true",
+                    help="add the (slow) perception section: full-size random models, minutes per photo on CPU")
+    ap.add_argument("--perception-images", type=int, default=3)
+    ap.add_argument("--perception-families", default="",
+                    help="e.g. owlv2,sam2,depth-pro (default grounding-dino,sam,depth-anything)")
     ap.add_argument("--json", default=None, help="also write the figures to this file")
     args = ap.parse_args(argv)
-    sections = args.only or (["sim", "blender", "qa", "image", "stream", "formats", "scale", "eval"]
-                             + (["rewrite"] if args.rewrite else []))
+    sections = args.only or (["sim", "blender", "qa", "image", "stream", "formats", "scale", "eval", "manifest"]
+                             + (["rewrite"] if args.rewrite else []) + (["perception"] if args.perception else []))
     figures: dict[str, Any] = {"machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.python_version()}"}
     work = Path(tempfile.mkdtemp(prefix="refspatial-bench-"))
     try:
@@ -246,10 +265,16 @@ def main(argv: list[str] | None = None) -> int:
                 figures["scale"] = bench_scaling(args.scale_scenes, args.mem_scenes, work)
             elif name == "eval":
                 figures["eval"] = bench_eval(args.scenes, work)
+            elif name == "manifest":  # input content hashing for the resume fingerprint (run/manifest.py)
+                from refspatial_gen.run.manifest import bench_manifest
+
+                figures["manifest"] = bench_manifest(work)
             elif name == "rewrite":
                 from refspatial_gen.rewrite.bench import bench_rewrite
 
                 figures["rewrite"] = bench_rewrite(work, args.rewrite_scenes)
+            elif name == "perception":
+                figures["perception"] = bench_perception(args.perception_images, args.perception_families)
             print(f"== {name} ({time.perf_counter() - t0:.1f} s)\n{json.dumps(figures[name], indent=2)}", flush=True)
     finally:
         shutil.rmtree(work, ignore_errors=True)

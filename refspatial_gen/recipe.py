@@ -14,15 +14,21 @@ from typing import Any
 
 from refspatial_gen.core.errors import RecipeError, RecipeErrors
 from refspatial_gen.core.serialize import dumps
-from refspatial_gen.schema import Field, check_section
+from refspatial_gen.recipe_paths import Confinement, check_name, check_rewrite, check_source_config, check_templates
+from refspatial_gen.schema import Field, check_section, non_finite
 from refspatial_gen.sources import get_source, source_names
 from refspatial_gen.yamlpos import line_of, load_yaml
 
+# A plan holds one small record per unit in memory; past this, split the dataset into runs with other seeds.
+MAX_SCENES = 1_000_000
+MAX_SEED = 2**64 - 1
+
 TOP_FIELDS: dict[str, Field] = {
-    "name": Field(str, doc="dataset name"),
+    "name": Field(str, check=check_name, doc="dataset name (a folder name under out/shards)"),
     "description": Field(str, default=""),
-    "seed": Field(int, default=0, min=0, doc="run seed; every unit derives its generator from (seed, unit id)"),
-    "scenes": Field(int, default=100, min=1, doc="units to generate, split across sources by weight"),
+    "seed": Field(int, default=0, min=0, max=MAX_SEED,
+                  doc="run seed; every unit derives its generator from (seed, unit id)"),
+    "scenes": Field(int, default=100, min=1, max=MAX_SCENES, doc="units to generate, split across sources by weight"),
     "sources": Field(list, required=True),
     "graph": Field(dict, default=None),
     "qa": Field(dict, default=None),
@@ -34,7 +40,8 @@ TOP_FIELDS: dict[str, Field] = {
 SOURCE_FIELDS: dict[str, Field] = {
     "kind": Field(str, required=True, doc="registered source name"),
     "weight": Field(float, default=1.0, min=0.0),
-    "scenes": Field(int, default=None, min=1, doc="fixed unit count for this source (overrides the weight split)"),
+    "scenes": Field(int, default=None, min=1, max=MAX_SCENES,
+                    doc="fixed unit count for this source (overrides the weight split)"),
     "input": Field(str, default=None, doc="input folder (scan/image sources), relative to the recipe file"),
     "config": Field(dict, default=None),
 }
@@ -72,31 +79,49 @@ class Recipe:
     rewrite: Any = None  # compiled `rewrite:` section (refspatial_gen.rewrite.config), None when absent or off
 
 
-def _source_config(kind: str, data: Any, file: str, lines: dict, path: tuple, errors: list[RecipeError]) -> dict:
+def _source_config(kind: str, data: Any, file: str, lines: dict, path: tuple, errors: list[RecipeError],
+                   conf: Confinement, inp: str | None) -> dict:
+    """The source's validated config; its paths are confined before the source's own hook may open them."""
     src = get_source(kind)
     fields = getattr(src, "CONFIG_FIELDS", None)
     if fields is None:
         if data is not None and not isinstance(data, dict):
             errors.append(RecipeError(file, line_of(lines, path), "config must be a mapping"))
             return {}
-        return dict(data or {})
+        cfg = dict(data or {})
+        check_source_config(kind, cfg, path[1], inp, conf)
+        return cfg
     n = len(errors)
     cfg = check_section(data, fields, file, lines, path, errors)
+    check_source_config(kind, cfg, path[1], inp, conf)
     hook = getattr(src, "check_config", None)  # source checks that need the recipe's folder (paths) or files
     if hook is not None and len(errors) == n:
         hook(cfg, file, lines, path, errors)
     return cfg
 
 
-def load_recipe(path: str | Path, *, seed: int | None = None, scenes: int | None = None,
-                input_path: str | None = None) -> Recipe:
-    """Load, validate and compile a recipe. Raises RecipeErrors listing every problem found."""
-    file = str(path)
-    data, lines = load_yaml(path)
-    if data is None:
-        raise RecipeError(file, 1, "empty recipe")
+class OverrideError(RecipeError):
+    """A command-line override that fails the recipe's own check: printed `--scenes: message`."""
+
+    def __str__(self) -> str:
+        return f"{self.file}: {self.message}"
+
+
+def check_overrides(seed: int | None, scenes: int | None) -> None:
+    """`--seed` / `--scenes` go through the same fields (type, range) as the recipe's `seed:` / `scenes:`."""
     errors: list[RecipeError] = []
-    top = check_section(data, TOP_FIELDS, file, lines, (), errors)
+    for flag, key, value in (("--seed", "seed", seed), ("--scenes", "scenes", scenes)):
+        if value is None:
+            continue
+        errs: list[RecipeError] = []
+        check_section({key: value}, {key: TOP_FIELDS[key]}, flag, {}, (), errs)
+        errors += [OverrideError(flag, None, e.message.removeprefix(f"{key} ")) for e in errs]
+    if errors:
+        raise RecipeErrors(errors)
+
+
+def _sources(top: dict, file: str, lines: dict, input_path: str | None, conf: Confinement,
+             errors: list[RecipeError]) -> list[SourceSpec]:
     specs: list[SourceSpec] = []
     for i, s in enumerate(top["sources"] or []):
         sp = check_section(s, SOURCE_FIELDS, file, lines, ("sources", i), errors)
@@ -107,30 +132,68 @@ def load_recipe(path: str | Path, *, seed: int | None = None, scenes: int | None
             errors.append(RecipeError(file, line_of(lines, ("sources", i, "kind")),
                                       f"unknown source kind {kind!r} (known: {', '.join(source_names())})"))
             continue
-        cfg = _source_config(kind, sp["config"], file, lines, ("sources", i, "config"), errors)
-        inp = input_path if input_path is not None else sp["input"]
-        if inp is not None and input_path is None:
-            inp = str((Path(file).parent / inp).resolve())
+        inp = input_path
+        if inp is None and sp["input"] is not None:
+            resolved = conf.check(sp["input"], conf.recipe_dir, ("sources", i, "input"), f"sources.{i}.input")
+            inp = None if resolved is None else str(resolved)
+        if inp is not None:
+            conf.allow(inp)
+        cfg = _source_config(kind, sp["config"], file, lines, ("sources", i, "config"), errors, conf, inp)
         if inp is not None:
             cfg["_input"] = inp  # sources resolve their (relative) unit keys against it in load()
         specs.append(SourceSpec(i, kind, sp["weight"], sp["scenes"], inp, cfg))
+    return specs
+
+
+def _check_mix(top: dict, specs: list[SourceSpec], file: str, lines: dict, errors: list[RecipeError]) -> None:
+    """Some source must receive units: weights of the split sources must not all be 0."""
     if top["sources"] is not None and not top["sources"]:
         errors.append(RecipeError(file, line_of(lines, ("sources",)), "sources must list at least one source"))
+    weighted = [s for s in specs if s.scenes is None]
+    if weighted and not any(s.weight > 0 for s in weighted):
+        errors.append(RecipeError(file, line_of(lines, ("sources",)),
+                                  "every source has weight 0 (give one a weight > 0 or a fixed `scenes:`)"))
+
+
+def _qa(top: dict, file: str, lines: dict, errors: list[RecipeError]) -> tuple[Any, list[Path]]:
+    qa_mod = importlib.import_module("refspatial_gen.qa")
+    try:
+        qa_cfg = qa_mod.load_qa_config(top["qa"] or {}, file, lines)
+    except RecipeError as e:
+        errors.append(e)
+    except RecipeErrors as e:
+        errors.extend(e.errors)
+    else:
+        return qa_cfg, [Path(p) for p in getattr(qa_cfg, "source_files", [])]
+    return None, []
+
+
+def load_recipe(path: str | Path, *, seed: int | None = None, scenes: int | None = None,
+                input_path: str | None = None, allow_roots: tuple[str, ...] = ()) -> Recipe:
+    """Load, validate and compile a recipe. Raises RecipeErrors listing every problem found.
+
+    Overrides (`seed`, `scenes`, `input_path`, as given on the command line) pass the same checks as the
+    recipe's own values; every path the recipe names is confined (recipe_paths.py), `allow_roots` adding
+    folders the user allowed explicitly."""
+    check_overrides(seed, scenes)
+    file = str(path)
+    data, lines = load_yaml(path)
+    if data is None:
+        raise RecipeError(file, 1, "empty recipe")
+    errors: list[RecipeError] = []
+    top = check_section(data, TOP_FIELDS, file, lines, (), errors)
+    nan_errors: list[RecipeError] = []
+    non_finite(data, file, lines, nan_errors)
+    errors += [e for e in nan_errors if str(e) not in {str(x) for x in errors}]  # free-form sections too
+    conf = Confinement(file, lines, errors, allow_roots)
+    specs = _sources(top, file, lines, input_path, conf, errors)
+    _check_mix(top, specs, file, lines, errors)
     shards = check_section(top["shards"], SHARD_FIELDS, file, lines, ("shards",), errors)
+    check_templates(top["qa"], conf)
+    check_rewrite(top["rewrite"], conf)
     splits = importlib.import_module("refspatial_gen.run.splits").check_splits(top["splits"], file, lines, errors)
     graph_cfg = dict(top["graph"] or {})
-    qa_cfg = None
-    deps: list[Path] = []
-    if not errors:
-        qa_mod = importlib.import_module("refspatial_gen.qa")
-        try:
-            qa_cfg = qa_mod.load_qa_config(top["qa"] or {}, file, lines)
-        except RecipeError as e:
-            errors.append(e)
-        except RecipeErrors as e:
-            errors.extend(e.errors)
-        else:
-            deps = [Path(p) for p in getattr(qa_cfg, "source_files", [])]
+    qa_cfg, deps = _qa(top, file, lines, errors) if not errors else (None, [])
     rewrite_cfg = None
     if top["rewrite"] is not None and not errors:
         try:

@@ -6,6 +6,7 @@ Every part of the project that reads a recipe section (sources, qa, shards) decl
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -28,6 +29,8 @@ class Field:
 
 
 def _type_ok(value: Any, t) -> bool:
+    if isinstance(value, float) and not math.isfinite(value):
+        return False  # NaN and infinity are never a valid setting (they pass every range check)
     ts = t if isinstance(t, tuple) else (t,)
     for ty in ts:
         if ty is float and isinstance(value, (int, float)) and not isinstance(value, bool):
@@ -37,6 +40,12 @@ def _type_ok(value: Any, t) -> bool:
         if ty not in (int, float) and isinstance(value, ty):
             return True
     return False
+
+
+def short(value: Any, limit: int = 60) -> str:
+    """repr() cut to `limit` characters: an error message quotes a value, never pages of it."""
+    r = repr(value)
+    return r if len(r) <= limit else r[: limit - 3] + "..."
 
 
 def _type_name(t) -> str:
@@ -58,7 +67,7 @@ def check_section(data: Any, fields: dict[str, Field], file: str, lines: dict[tu
     for key in data:
         if key not in fields:
             known = ", ".join(sorted(fields))
-            errors.append(RecipeError(file, line_of(lines, path + (key,)), f"unknown key {key!r} in {where} (known: {known})"))
+            errors.append(RecipeError(file, line_of(lines, path + (key,)), f"unknown key {short(key)} in {where} (known: {known})"))
     for key, f in fields.items():
         if key not in data or data[key] is None:
             if f.required:
@@ -67,21 +76,41 @@ def check_section(data: Any, fields: dict[str, Field], file: str, lines: dict[tu
             continue
         v = data[key]
         ln = line_of(lines, path + (key,))
+        if isinstance(v, float) and not math.isfinite(v):
+            errors.append(RecipeError(file, ln, f"{prefix}{key} must be a finite number, got {v}"))
+            out[key] = f.default
+            continue
         if not _type_ok(v, f.type):
-            errors.append(RecipeError(file, ln, f"{prefix}{key} must be {_type_name(f.type)}, got {type(v).__name__} {v!r}"))
+            errors.append(RecipeError(file, ln, f"{prefix}{key} must be {_type_name(f.type)}, got {type(v).__name__} {short(v)}"))
             out[key] = f.default
             continue
         if isinstance(v, int) and not isinstance(v, bool) and f.type is float:
             v = float(v)
         if f.choices is not None and v not in f.choices:
-            errors.append(RecipeError(file, ln, f"{prefix}{key} must be one of {', '.join(map(str, f.choices))}, got {v!r}"))
+            errors.append(RecipeError(file, ln, f"{prefix}{key} must be one of {', '.join(map(str, f.choices))}, got {short(v)}"))
         if f.min is not None and isinstance(v, (int, float)) and v < f.min:
             errors.append(RecipeError(file, ln, f"{prefix}{key} must be >= {f.min}, got {v}"))
         if f.max is not None and isinstance(v, (int, float)) and v > f.max:
             errors.append(RecipeError(file, ln, f"{prefix}{key} must be <= {f.max}, got {v}"))
         if f.check is not None:
-            msg = f.check(v)
+            try:
+                msg = f.check(v)
+            except (TypeError, ValueError, KeyError, AttributeError) as e:  # a check meeting a shape it never expected
+                msg = f"invalid value ({type(e).__name__})"
             if msg:
                 errors.append(RecipeError(file, ln, f"{prefix}{key}: {msg}"))
         out[key] = v
     return out
+
+
+def non_finite(data: Any, file: str, lines: dict[tuple, int], errors: list[RecipeError], path: tuple = ()) -> None:
+    """NaN or infinity anywhere in a document (inside free-form mappings too: weights, options) is an error."""
+    if isinstance(data, float) and not math.isfinite(data):
+        where = ".".join(str(p) for p in path) or "value"
+        errors.append(RecipeError(file, line_of(lines, path), f"{where} must be a finite number, got {data}"))
+    elif isinstance(data, dict):
+        for k, v in data.items():
+            non_finite(v, file, lines, errors, path + (k,))
+    elif isinstance(data, list):
+        for i, v in enumerate(data):
+            non_finite(v, file, lines, errors, path + (i,))

@@ -15,7 +15,7 @@ def _prior(**kw) -> CameraPrior:
 
 
 def test_registry_and_option_checks():
-    assert estimator_names() == ["depth-anything", "geometric", "onnx", "provided"]
+    assert estimator_names() == ["depth-anything", "geometric", "onnx", "perception", "provided"]
     assert check_options("geometric", {"camera_height": 1.2}) is None
     assert "unknown option" in check_options("geometric", {"camera_hieght": 1.2})
     assert ">=" in check_options("geometric", {"camera_height": -1.0})

@@ -25,6 +25,8 @@ def register(sub) -> None:
     p.add_argument("--ray-address", default=None, help="Ray cluster address (default: start a local instance)")
     p.add_argument("--fresh", action="store_true", help="discard a previous run's output in --out")
     p.add_argument("--strict", action="store_true", help="stop on an internal error instead of counting it")
+    p.add_argument("--allow-root", action="append", default=[], metavar="DIR",
+                   help="also allow the recipe to read files under DIR (repeatable; see docs/reliability.md)")
     p.add_argument("--no-report", action="store_true", help="skip the HTML run report")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_shards)
@@ -36,16 +38,59 @@ def register(sub) -> None:
     s.set_defaults(func=cmd_stats)
 
 
+OUT_ROOT = Path("out/shards")
+
+
+def _out_dir(args, recipe) -> Path:
+    """--out as given; else out/shards/<recipe name>, which must stay under out/shards."""
+    from refspatial_gen.core.errors import RecipeError
+    from refspatial_gen.recipe_paths import check_name, is_under
+
+    if args.out:
+        return Path(args.out)
+    msg = check_name(recipe.name)
+    out = OUT_ROOT / recipe.name
+    if msg or not is_under(out.resolve(), OUT_ROOT.resolve()) or out.resolve() == OUT_ROOT.resolve():
+        raise RecipeError(recipe.path, 1, f"name: {msg or 'must name a folder under out/shards'} "
+                                          f"(or give --out)")
+    return out
+
+
+def _resolve(path: str, flag: str) -> str:
+    """An absolute path for a command-line folder; a symlink loop is an error, not a traceback."""
+    from refspatial_gen.core.errors import InputError
+
+    try:
+        return str(Path(path).resolve())
+    except (OSError, RuntimeError) as e:
+        raise InputError(path, f"{flag}: cannot be resolved ({type(e).__name__}: {e})") from None
+
+
+def _check_args(args) -> None:
+    from refspatial_gen.core.errors import RecipeErrors
+    from refspatial_gen.recipe import OverrideError
+
+    errors = []
+    if args.workers < 1:
+        errors.append(OverrideError("--workers", None, f"must be >= 1, got {args.workers}"))
+    if args.input is not None and not args.input.strip():
+        errors.append(OverrideError("--input", None, "must name a folder, got an empty string"))
+    if errors:
+        raise RecipeErrors(errors)
+
+
 def cmd_shards(args) -> int:
     if args.action == "salvage":
         return _salvage(args.paths)
     from refspatial_gen.recipe import load_recipe
     from refspatial_gen.run.executor import RecipeRef, run_plan
 
-    recipe = load_recipe(args.recipe, seed=args.seed, scenes=args.scenes, input_path=args.input)
-    out = Path(args.out or f"out/shards/{recipe.name}")
-    ref = RecipeRef(str(Path(args.recipe).resolve()), args.seed, args.scenes,
-                    None if args.input is None else str(Path(args.input).resolve()))
+    _check_args(args)
+    inp = None if args.input is None else _resolve(args.input, "--input")
+    allow = tuple(_resolve(a, "--allow-root") for a in args.allow_root)
+    recipe = load_recipe(args.recipe, seed=args.seed, scenes=args.scenes, input_path=inp, allow_roots=allow)
+    out = _out_dir(args, recipe)
+    ref = RecipeRef(str(Path(args.recipe).resolve()), args.seed, args.scenes, inp, allow)
     result = run_plan(recipe, ref, out, workers=args.workers, executor=args.executor, ray_address=args.ray_address,
                       strict=args.strict, fresh=args.fresh, progress=not args.quiet)
     st, log = result["stats"], result["run_log"]
@@ -68,6 +113,11 @@ def cmd_shards(args) -> int:
     if log["errors"]:
         print(f"warning: {len(log['errors'])} units failed with internal errors; tracebacks in {out / 'run_log.json'}",
               file=sys.stderr)
+    if st["units"] and not st["samples"]:
+        top = sorted(st["dropped"].items(), key=lambda kv: (-kv[1], kv[0]))[:5]
+        print(f"refspatial-gen: every unit was dropped; top reasons: {', '.join(f'{k} ({v})' for k, v in top)}",
+              file=sys.stderr)
+        return 1
     return 0
 
 

@@ -79,6 +79,7 @@ _ESTIMATORS: dict[str, str] = {
     "depth-anything": "refspatial_gen.depth.depth_anything:DepthAnythingDepth",
     "onnx": "refspatial_gen.depth.onnx_model:OnnxDepth",
     "geometric": "refspatial_gen.depth.geometric:GeometricDepth",
+    "perception": "refspatial_gen.perception.photos:PerceptionDepth",  # photos loaded with `perception:`
 }
 
 

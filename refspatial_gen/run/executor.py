@@ -5,6 +5,10 @@ small group record (`_parts/shard-XXXXX.json`) is written atomically. A group co
 its record exists and every shard it lists matches its size and sha256. On restart, unfinished groups are
 redone from scratch (their units are deterministic), so the result is byte-identical to an uninterrupted
 run. `index.json` is written last, atomically.
+
+One run per folder (run/lock.py); the folder's identity covers the input's content (run/outdir.py); a
+worker that dies is survived (run/localpool.py); Ctrl-C / SIGTERM stop the workers, discard the groups in
+flight and say how to resume; a failed write names its file (core.errors.OutputIOError).
 """
 
 from __future__ import annotations
@@ -12,37 +16,47 @@ from __future__ import annotations
 import json
 import os
 import resource
+import shutil
 import signal
 import sys
 import time
 import traceback
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass
 from functools import lru_cache
-from multiprocessing import get_context
 from pathlib import Path
 from typing import Any, Callable
 
-from refspatial_gen.core.errors import DropUnit
+from refspatial_gen.core.errors import DropUnit, OutputIOError, RunError, Terminated
 from refspatial_gen.core.fsutil import atomic_write_bytes, sha256_file
 from refspatial_gen.core.serialize import dumps
-from refspatial_gen.recipe import Recipe, load_recipe, recipe_fingerprint
+from refspatial_gen.recipe import Recipe, load_recipe
 from refspatial_gen.run import stats as S
+from refspatial_gen.run.lock import OutputLock
+from refspatial_gen.run.localpool import marker_path
+from refspatial_gen.run.outdir import PARTS, discard_groups, group_files, prepare, remove_strays, run_fingerprint
 from refspatial_gen.run.pipeline import StageTimer, make_sample
 from refspatial_gen.run.plan import Group, Unit, plan_groups, plan_units
 
-PARTS = "_parts"
 FAULT_ENV = "REFSPATIAL_FAULT"  # test hook: "unit:N" | "index" — SIGKILL this process at that point
 _units_done = 0
 
 
-def _fault(point: str) -> None:
-    """Crash-test hook: kill the process with SIGKILL at a named point when REFSPATIAL_FAULT asks for it."""
+def _fault(point: str, uid: str = "") -> None:
+    """Crash-test hook: kill the process with SIGKILL at a named point when REFSPATIAL_FAULT asks for it
+    ("unit:N" after the N-th unit, "index" while writing the index, "crash:<uid>" when starting that unit;
+    "slow:SECONDS" only sleeps that long after every unit)."""
     global _units_done
     spec = os.environ.get(FAULT_ENV)
     if not spec:
         return
+    if point == "start":
+        if spec == f"crash:{uid}":
+            os.kill(os.getpid(), signal.SIGKILL)
+        return
     if point == "unit":
+        if spec.startswith("slow:"):  # a slow run, for tests of what happens while a run is in progress
+            time.sleep(float(spec[5:]))
+            return
         _units_done += 1
         if spec == f"unit:{_units_done}":
             os.kill(os.getpid(), signal.SIGKILL)
@@ -58,6 +72,7 @@ class RecipeRef:
     seed: int | None
     scenes: int | None
     input_path: str | None
+    allow_roots: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -67,36 +82,37 @@ class GroupTask:
     group_index: int
     units: tuple[tuple[str, int, str, str], ...]
     strict: bool = False
+    skip: tuple[tuple[str, str], ...] = ()  # (unit id, drop reason): units not run (they killed their worker)
+    recipe_hash: str = ""  # the plan's recipe hash: a worker refuses a recipe that changed since planning
 
 
 @lru_cache(maxsize=4)
 def _recipe(ref: RecipeRef) -> Recipe:
-    return load_recipe(ref.path, seed=ref.seed, scenes=ref.scenes, input_path=ref.input_path)
+    return load_recipe(ref.path, seed=ref.seed, scenes=ref.scenes, input_path=ref.input_path,
+                       allow_roots=ref.allow_roots)
 
 
-def group_files(out_dir: Path, index: int) -> list[Path]:
-    stem = f"shard-{index:05d}"
-    return sorted(p for p in out_dir.iterdir() if p.name.startswith(stem + ".") or p.name.startswith(stem + "-"))
+def _write_error(e: OSError, fallback: Path) -> OutputIOError:
+    return OutputIOError(str(e.filename or fallback), e.strerror or str(e))
 
 
-def run_group(task: GroupTask) -> dict[str, Any]:
-    """Process one shard group; returns its record (deterministic part under "record")."""
-    from refspatial_gen.shards.writer import ShardWriter
-
-    recipe = _recipe(task.recipe)
+def _run_units(task: GroupTask, recipe: Recipe, writer: Any, stats: dict, timer: StageTimer,
+               errors: list[dict[str, str]]) -> None:
     out = Path(task.out_dir)
-    for stale in group_files(out, task.group_index):
-        stale.unlink()
-    timer = StageTimer()
-    stats = S.empty_stats()
-    errors: list[dict[str, str]] = []
-    writer = ShardWriter(out / f"shard-{task.group_index:05d}.mcap", max_bytes=recipe.shards["max_bytes"],
-                         image_format=recipe.shards["image_format"])
+    skip = dict(task.skip)
+    marker = marker_path(out, task.group_index)
     for uid, sidx, kind, key in task.units:
-        unit = Unit(uid, sidx, kind, key)
         stats["units"] += 1
+        if uid in skip:
+            S.add_drop(stats, skip[uid])
+            continue
         try:
-            sample = make_sample(recipe, unit, timer, task.out_dir)
+            marker.write_text(uid, encoding="utf-8")  # names the unit if this process dies (localpool.py)
+        except OSError as e:
+            raise _write_error(e, marker) from None
+        _fault("start", uid)
+        try:
+            sample = make_sample(recipe, Unit(uid, sidx, kind, key), timer, task.out_dir)
         except DropUnit as e:
             S.add_drop(stats, e.reason)
             continue
@@ -108,15 +124,51 @@ def run_group(task: GroupTask) -> dict[str, Any]:
             print(f"refspatial-gen: unit {uid} failed: {e!r} (counted as dropped; see run_log.json)", file=sys.stderr)
             continue
         t = time.perf_counter()
-        writer.write(sample)
+        try:
+            writer.write(sample)
+        except OSError as e:
+            raise _write_error(e, out / f"shard-{task.group_index:05d}.mcap") from None
         timer.add("write", t)
         S.add_sample(stats, sample, kind)
         _fault("unit")
+
+
+def run_group(task: GroupTask) -> dict[str, Any]:
+    """Process one shard group; returns its record (deterministic part under "record")."""
+    from refspatial_gen.shards.writer import ShardWriter
+
+    recipe = _recipe(task.recipe)
+    if task.recipe_hash and recipe.hash != task.recipe_hash:
+        _recipe.cache_clear()  # the cache is keyed by path: a file edited between two runs of one process
+        recipe = _recipe(task.recipe)
+    if task.recipe_hash and recipe.hash != task.recipe_hash:
+        raise RunError(f"{task.recipe.path} (or a template it names) changed during the run; run the same "
+                       f"command again to resume with it, or --fresh", 2)
+    out = Path(task.out_dir)
+    base = out / f"shard-{task.group_index:05d}.mcap"
+    timer = StageTimer()
+    stats = S.empty_stats()
+    errors: list[dict[str, str]] = []
+    try:
+        for stale in group_files(out, task.group_index):
+            stale.unlink()
+        writer = ShardWriter(base, max_bytes=recipe.shards["max_bytes"], image_format=recipe.shards["image_format"])
+    except OSError as e:
+        raise _write_error(e, base) from None
+    _run_units(task, recipe, writer, stats, timer, errors)
     t = time.perf_counter()
-    infos = [_info_dict(i) for i in writer.finish()]
+    record_path = out / PARTS / f"shard-{task.group_index:05d}.json"
+    try:
+        infos = [_info_dict(i) for i in writer.finish()]
+    except OSError as e:
+        raise _write_error(e, base) from None
     timer.add("write", t)
     record = {"group": task.group_index, "units": [u[0] for u in task.units], "shards": infos, "stats": stats}
-    atomic_write_bytes(out / PARTS / f"shard-{task.group_index:05d}.json", dumps(record))
+    try:
+        atomic_write_bytes(record_path, dumps(record))
+        marker_path(out, task.group_index).unlink(missing_ok=True)
+    except OSError as e:
+        raise _write_error(e, record_path) from None
     return {"record": record, "stage_seconds": timer.seconds, "peak_rss_mb": peak_rss_mb(), "errors": errors,
             "pid": os.getpid()}
 
@@ -151,77 +203,113 @@ def completed_record(out_dir: Path, group: Group) -> dict[str, Any] | None:
         record = json.loads(p.read_bytes())
     except (OSError, ValueError):
         return None
-    if record.get("units") != [u.uid for u in group.units]:
+    if not isinstance(record, dict) or record.get("units") != [u.uid for u in group.units] \
+            or not isinstance(record.get("shards"), list) or not isinstance(record.get("stats"), dict):
         return None
-    for s in record.get("shards", []):
-        f = out_dir / s["name"]
-        if not f.is_file() or f.stat().st_size != s["bytes"] or sha256_file(f) != s["sha256"]:
+    for s in record["shards"]:
+        name = s.get("name") if isinstance(s, dict) else None
+        if not isinstance(name, str) or not name.startswith(group.name) or "/" in name or "\\" in name:
+            return None  # a record never names a file outside its own group's shards
+        f = out_dir / name
+        try:
+            if not f.is_file() or f.stat().st_size != s.get("bytes") or sha256_file(f) != s.get("sha256"):
+                return None
+        except OSError:
             return None
     return record
 
 
-def _check_output_dir(out_dir: Path, fingerprint: dict[str, Any], fresh: bool) -> None:
-    marker = out_dir / PARTS / "run.json"
-    if marker.is_file():
-        old = json.loads(marker.read_bytes())
-        if old != fingerprint and not fresh:
-            raise SystemExit(
-                f"refspatial-gen: {out_dir} holds the output of a different run "
-                f"(recipe/seed/scenes/code differ); use another --out or pass --fresh to replace it")
-    if fresh and out_dir.exists():
-        for p in list(out_dir.glob("shard-*")) + list((out_dir / PARTS).glob("*")) + [out_dir / "index.json"]:
-            if p.is_file():
-                p.unlink()
-    (out_dir / PARTS).mkdir(parents=True, exist_ok=True)
-    # leftovers of a killed run: a half-written index or group record (shard partials are redone per group)
-    for p in [out_dir / "index.json.partial", *(out_dir / PARTS).glob("*.tmp")]:
-        if p.is_file():
-            p.unlink()
-    atomic_write_bytes(marker, dumps(fingerprint))
+def _interrupted(kind: str, code: int, out_dir: Path, done: int, total: int) -> RunError:
+    return RunError(f"{kind}: {done} of {total} shard groups are finished and kept in {out_dir}; run the same "
+                    f"command again to resume", code)
 
 
 def run_plan(recipe: Recipe, ref: RecipeRef, out_dir: Path, workers: int = 1, executor: str = "local",
              ray_address: str | None = None, strict: bool = False, fresh: bool = False,
              progress: bool = True, on_group_done: Callable[[int], None] | None = None) -> dict[str, Any]:
-    """Run (or resume) the whole plan into `out_dir`; returns {"index": ..., "run_log": ...}."""
-    from refspatial_gen.shards.index import write_index
+    """Run (or resume) the whole plan into `out_dir`, holding its lock; returns {"index", "stats", "run_log"}.
 
+    Ctrl-C / SIGTERM: workers stopped, groups in flight discarded, RunError (exit 130 / 143) saying how to
+    resume."""
+    existed = out_dir.exists()
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise OutputIOError(str(e.filename or out_dir), e.strerror or str(e)) from None
+    lock = OutputLock(out_dir)
+    lock.acquire()
+    started = False
+    try:
+        units = plan_units(recipe)  # input errors stop here, before the folder is touched
+        fingerprint = run_fingerprint(recipe, out_dir)
+        started = True
+        return _run_locked(recipe, ref, out_dir, units, fingerprint, workers, executor, ray_address, strict, fresh,
+                           progress, on_group_done)
+    finally:
+        lock.release()
+        if not started and not existed:  # nothing was planned: leave no folder behind (only we wrote in it)
+            shutil.rmtree(out_dir, ignore_errors=True)
+
+
+def _run_locked(recipe: Recipe, ref: RecipeRef, out_dir: Path, units: list[Unit], fingerprint: dict[str, Any],
+                workers: int, executor: str, ray_address: str | None, strict: bool, fresh: bool, progress: bool,
+                on_group_done: Callable[[int], None] | None) -> dict[str, Any]:
     t_start = time.time()
-    out_dir.mkdir(parents=True, exist_ok=True)
-    fingerprint = recipe_fingerprint(recipe)
-    _check_output_dir(out_dir, fingerprint, fresh)
-    units = plan_units(recipe)
+    prepare(out_dir, fingerprint, fresh)
     groups = plan_groups(units, recipe.shards["samples_per_shard"])
     records: dict[int, dict[str, Any]] = {}
     for g in groups:
         rec = completed_record(out_dir, g)
         if rec is not None:
             records[g.index] = rec
-    todo = [g for g in groups if g.index not in records]
-    tasks = [GroupTask(ref, str(out_dir), g.index, tuple((u.uid, u.source_index, u.kind, u.key) for u in g.units), strict)
-             for g in todo]
+    tasks = [GroupTask(ref, str(out_dir), g.index, tuple((u.uid, u.source_index, u.kind, u.key) for u in g.units),
+                       strict, recipe_hash=recipe.hash) for g in groups if g.index not in records]
     results: list[dict[str, Any]] = []
     bar = _progress(len(units), sum(len(g.units) for g in groups if g.index in records), progress)
-    for res in _execute(tasks, workers, executor, ray_address):
-        records[res["record"]["group"]] = res["record"]
-        results.append(res)
-        bar.update(len(res["record"]["units"]))
-        bar.set_postfix(qa=sum(r["stats"]["qa_pairs"] for r in records.values()), refresh=False)
-        if on_group_done is not None:
-            on_group_done(res["record"]["group"])
+    gen = _execute(tasks, workers, executor, ray_address, out_dir)
+    try:
+        for res in gen:
+            records[res["record"]["group"]] = res["record"]
+            results.append(res)
+            bar.update(len(res["record"]["units"]))
+            bar.set_postfix(qa=sum(r["stats"]["qa_pairs"] for r in records.values()), refresh=False)
+            if on_group_done is not None:
+                on_group_done(res["record"]["group"])
+    except BaseException as e:
+        bar.close()
+        gen.close()  # stops the workers (the pool's own `finally`) before their files are discarded
+        discard_groups(out_dir, [g.index for g in groups if g.index not in records])
+        if isinstance(e, KeyboardInterrupt):
+            raise _interrupted("interrupted", 130, out_dir, len(records), len(groups)) from None
+        if isinstance(e, Terminated):
+            raise _interrupted("terminated", 143, out_dir, len(records), len(groups)) from None
+        raise
     bar.close()
+    return _finish(recipe, out_dir, groups, records, results, fingerprint, workers, executor, t_start)
+
+
+def _finish(recipe: Recipe, out_dir: Path, groups: list[Group], records: dict[int, dict[str, Any]],
+            results: list[dict[str, Any]], fingerprint: dict[str, Any], workers: int, executor: str,
+            t_start: float) -> dict[str, Any]:
+    """Merge the group records, remove stray shard files, write index.json (last) and the run log."""
+    from refspatial_gen.shards.index import write_index
+
     total = S.empty_stats()
     shards: list[dict[str, Any]] = []
     for idx in sorted(records):
         total = S.merge(total, records[idx]["stats"])
         for s in records[idx]["shards"]:
             shards.append({**s, "group": idx})
+    strays = remove_strays(out_dir, {s["name"] for s in shards}, len(groups))
     if os.environ.get(FAULT_ENV) == "index":  # simulate dying half-way through writing the index
         (out_dir / "index.json.partial").write_bytes(b'{"shards": [')
         _fault("index")
     from refspatial_gen.run.splits import index_section
 
-    index = write_index(out_dir, shards, {**fingerprint, "stats": total, **index_section(recipe, out_dir, shards)})
+    try:
+        index = write_index(out_dir, shards, {**fingerprint, "stats": total, **index_section(recipe, out_dir, shards)})
+    except OSError as e:
+        raise OutputIOError(str(e.filename or out_dir / "index.json"), e.strerror or str(e)) from None
     wall = time.time() - t_start
     stage = {k: round(sum(r["stage_seconds"].get(k, 0.0) for r in results), 3) for k in ("load", "graph", "qa", "write")}
     run_log = {
@@ -230,10 +318,13 @@ def run_plan(recipe: Recipe, ref: RecipeRef, out_dir: Path, workers: int = 1, ex
         "units_per_s": round(sum(len(r["record"]["units"]) for r in results) / wall, 3) if wall > 0 else 0.0,
         "qa_per_s": round(sum(r["record"]["stats"]["qa_pairs"] for r in results) / wall, 3) if wall > 0 else 0.0,
         "peak_rss_mb_per_worker": round(max((r["peak_rss_mb"] for r in results), default=0.0), 1),
-        "errors": [e for r in results for e in r["errors"]],
+        "errors": [e for r in results for e in r["errors"]], "stray_files_removed": strays,
         "started": time.strftime("%Y-%m-%dT%H:%M:%S", time.localtime(t_start)), "host": os.uname().nodename,
     }
-    (out_dir / "run_log.json").write_text(json.dumps(run_log, indent=2, sort_keys=True))
+    try:
+        (out_dir / "run_log.json").write_text(json.dumps(run_log, indent=2, sort_keys=True))
+    except OSError as e:
+        raise OutputIOError(str(out_dir / "run_log.json"), e.strerror or str(e)) from None
     return {"index": index, "stats": total, "run_log": run_log}
 
 
@@ -244,24 +335,18 @@ def _progress(total: int, initial: int, enabled: bool):
                 dynamic_ncols=True, file=sys.stderr)
 
 
-def _execute(tasks: list[GroupTask], workers: int, executor: str, ray_address: str | None):
+def _execute(tasks: list[GroupTask], workers: int, executor: str, ray_address: str | None, out_dir: Path):
     if not tasks:
         return
     if executor == "ray":
         from refspatial_gen.run.ray_executor import execute_on_ray
 
-        yield from execute_on_ray(tasks, workers, ray_address)
+        yield from execute_on_ray(tasks, workers, ray_address, out_dir)
         return
-    if workers <= 1:
+    if workers <= 1:  # in this process (a native crash here ends the run; resume redoes the group)
         for t in tasks:
             yield run_group(t)
         return
-    with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn")) as pool:
-        pending = {pool.submit(run_group, t) for t in tasks[: workers * 2]}
-        queue = list(tasks[workers * 2 :])
-        while pending:
-            done, pending = wait(pending, return_when=FIRST_COMPLETED)
-            for fut in sorted(done, key=id):
-                yield fut.result()
-                if queue:
-                    pending.add(pool.submit(run_group, queue.pop(0)))
+    from refspatial_gen.run.localpool import run_pool
+
+    yield from run_pool(tasks, workers, out_dir, run_group)

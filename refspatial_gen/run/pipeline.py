@@ -5,7 +5,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
-from refspatial_gen.core.errors import DropUnit
+from refspatial_gen.core.errors import DropUnit, InputError
 from refspatial_gen.core.model import Sample
 from refspatial_gen.recipe import Recipe
 from refspatial_gen.run.plan import Unit, unit_rng
@@ -30,7 +30,12 @@ def make_sample(recipe: Recipe, unit: Unit, timer: StageTimer, out_dir: str | No
     spec = recipe.sources[[s.index for s in recipe.sources].index(unit.source_index)]
     rng = unit_rng(recipe.seed, unit.uid)
     t = time.perf_counter()
-    frames = get_source(unit.kind).load(unit.key, rng, spec.config)
+    try:
+        frames = get_source(unit.kind).load(unit.key, rng, spec.config)
+    except OSError as e:  # a file the unit needs cannot be read (permissions, a folder where a file should be, EIO)
+        raise DropUnit("input_unreadable", f"{e.filename or unit.key}: {e.strerror or e}") from e
+    except InputError as e:  # the input changed since planning
+        raise DropUnit("input_invalid", str(e)) from e
     if not frames:
         raise DropUnit("no_frames", unit.key)
     for f in frames:

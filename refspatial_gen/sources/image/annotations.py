@@ -19,7 +19,8 @@ from typing import Any
 
 import numpy as np
 
-from refspatial_gen.core.errors import DropUnit
+from refspatial_gen.core.errors import DropUnit, InputError
+from refspatial_gen.sources.image import checks as C
 
 FORMATS = ("auto", "coco", "coco_panoptic", "openimages", "sunrgbd")
 IMAGE_EXTS = (".jpg", ".jpeg", ".png", ".bmp", ".webp")
@@ -79,34 +80,57 @@ def _peek_json(path: Path) -> dict | list | None:
     try:
         with open(path, "r", encoding="utf-8") as f:
             return json.load(f)
-    except (OSError, json.JSONDecodeError):
+    except (OSError, ValueError, RecursionError):  # ValueError covers JSONDecodeError and UnicodeDecodeError
         return None
+
+
+def _first_entry(d: dict) -> Any:
+    anns = d.get("annotations")
+    return anns[0] if isinstance(anns, list) and anns else None
+
+
+def _is_panoptic(d: Any) -> bool:
+    first = _first_entry(d) if isinstance(d, dict) else None
+    return isinstance(first, dict) and "segments_info" in first
+
+
+def _is_coco(d: Any) -> bool:
+    """A COCO instances file (its lists are checked by the reader, which names what is wrong)."""
+    return isinstance(d, dict) and "images" in d and "annotations" in d and not _is_panoptic(d)
+
+
+def _csv_head(p: Path) -> str:
+    try:
+        with open(p, "r", encoding="utf-8") as f:
+            return f.readline()
+    except (OSError, UnicodeDecodeError):
+        return ""
 
 
 def detect_format(root: Path) -> str:
     """Guess the annotation format of a folder (explicit `format:` in the recipe skips this)."""
     if not root.is_dir():
-        raise FileNotFoundError(f"input folder {root} does not exist")
+        raise InputError(str(root), "input folder does not exist" if not root.exists() else "input is not a folder")
     subdirs = sorted(p for p in root.iterdir() if p.is_dir())
     if any((d / "annotation.json").is_file() and (d / "image.jpg").is_file() for d in subdirs):
         return "sunrgbd"
-    if any(p.suffix == ".csv" for p in root.iterdir()):
-        for p in sorted(root.glob("*.csv")):
-            with open(p, "r", encoding="utf-8") as f:
-                head = f.readline()
-            if "XMin" in head or "BoxXMin" in head:
-                return "openimages"
+    for p in sorted(root.glob("*.csv")):
+        head = _csv_head(p)
+        if "XMin" in head or "BoxXMin" in head:
+            return "openimages"
     found = None
     for p in _json_files(root):
         d = _peek_json(p)
-        if isinstance(d, dict) and "annotations" in d and d["annotations"]:
-            if "segments_info" in d["annotations"][0]:
-                return "coco_panoptic"
-            if "images" in d and "categories" in d:
-                found = "coco"
+        if _is_panoptic(d):
+            return "coco_panoptic"
+        if _is_coco(d):
+            found = "coco"
     if found:
         return found
-    raise DropUnit("unknown_annotation_format", f"no COCO/panoptic/OpenImages/SUN RGB-D annotations in {root}")
+    for p in _json_files(root):  # nothing recognised: a broken JSON file is the likely reason, say which
+        if _peek_json(p) is None:
+            C.load_json_file(p)  # raises InputError with the parse error
+    raise InputError(str(root), "no COCO / COCO panoptic / OpenImages / SUN RGB-D annotations found")
 
 
 def _images_dir(root: Path, hint: str | None) -> Path:
@@ -121,116 +145,200 @@ def _images_dir(root: Path, hint: str | None) -> Path:
 # ----------------------------------------------------------------------------------------------- readers
 
 
-def _xywh(b) -> tuple[float, float, float, float]:
-    x, y, w, h = (float(v) for v in b)
-    return x, y, x + w, y + h
+def _invalid(images: dict[str, ImageRecord], iid: str, img_dir: Path, bad: C.Bad) -> None:
+    """Mark an image's record invalid (created when the entry itself was unusable); the first problem wins."""
+    rec = images.get(iid)
+    if rec is None:
+        rec = images[iid] = ImageRecord(iid, img_dir / "(invalid)", None, None, [])
+    rec.meta.setdefault("invalid", (bad.reason, bad.detail))
+
+
+def _image_records(entries: list, img_dir: Path, where: str) -> dict[str, ImageRecord]:
+    """COCO `images` entries -> records; a malformed entry yields an invalid record (dropped when loaded)."""
+    images: dict[str, ImageRecord] = {}
+    for k, im in enumerate(entries):
+        iid = C.entry_id(im.get("id")) if isinstance(im, dict) else None
+        if iid is None:
+            _invalid(images, f"#images[{k}]", img_dir, C.Bad("annotation_invalid", f"{where} images[{k}] has no usable id"))
+            continue
+        if iid in images:
+            _invalid(images, iid, img_dir, C.Bad("annotation_invalid", f"{where}: image id {iid} listed twice"))
+            continue
+        try:
+            file = C.relative_file(im.get("file_name"), img_dir, f"image {iid} file_name")
+            w, h = C.positive_int(im.get("width"), f"image {iid} width"), C.positive_int(im.get("height"), f"image {iid} height")
+        except C.Bad as bad:
+            _invalid(images, iid, img_dir, bad)
+            continue
+        images[iid] = ImageRecord(iid, file, w, h, [], meta={"file_name": im["file_name"], "license": im.get("license")})
+    return images
+
+
+def _categories(entries: list) -> dict[int, tuple[str, bool]]:
+    """id -> (name, isthing); malformed entries are left out (annotations naming them become invalid)."""
+    out: dict[int, tuple[str, bool]] = {}
+    for c in entries:
+        if isinstance(c, dict) and isinstance(c.get("id"), int) and not isinstance(c.get("id"), bool) \
+                and isinstance(c.get("name"), str):
+            out[c["id"]] = (c["name"], bool(c.get("isthing", 1)))
+    return out
+
+
+def _category(cats: dict[int, tuple[str, bool]], v: Any, what: str) -> tuple[int, str, bool]:
+    cid = C.int_id(v, f"{what} category_id")
+    if cid not in cats:
+        raise C.Bad("annotation_invalid", f"{what} category_id {cid} is not in the categories")
+    return cid, *cats[cid]
+
+
+def _coco_annotation(a: dict, cats: dict, what: str) -> tuple[int, Annotation]:
+    aid = C.int_id(a.get("id"), f"{what} id")
+    kind, payload = C.segmentation(a.get("segmentation"))
+    _, name, isthing = _category(cats, a.get("category_id"), what)
+    return aid, Annotation(str(aid), name, C.bbox_xywh(a.get("bbox"), f"{what} bbox"), kind, payload,
+                           C.flag(a.get("iscrowd"), f"{what} iscrowd"), isthing)
+
+
+def _attach(images: dict[str, ImageRecord], entries: list, img_dir: Path, where: str, parse) -> None:
+    """Annotations -> their images, sorted by annotation id; `parse(entry, what)` -> (sort key, [Annotation])."""
+    per_image: dict[str, list] = {}
+    for k, a in enumerate(entries):
+        iid = C.entry_id(a.get("image_id")) if isinstance(a, dict) else None
+        if iid is None:
+            _invalid(images, f"#annotations[{k}]", img_dir,
+                     C.Bad("annotation_invalid", f"{where} annotations[{k}] has no usable image_id"))
+            continue
+        rec = images.get(iid)
+        if rec is None or rec.meta.get("invalid"):
+            continue  # an image this file does not list (a subset), or one already dropped
+        try:
+            key, anns = parse(a, f"image {iid} annotation {a.get('id', k)}")
+        except C.Bad as bad:
+            _invalid(images, iid, img_dir, bad)
+            continue
+        per_image.setdefault(iid, []).append((key, anns))
+    for iid, items in per_image.items():
+        if not images[iid].meta.get("invalid"):
+            for _, anns in sorted(items, key=lambda t: t[0]):
+                images[iid].annotations.extend(anns)
+
+
+def _top_level(root: Path, annotations: str | None, pick, what: str) -> tuple[Path, dict]:
+    """The annotation file (named, or the first in `root` that `pick` accepts) and its data, checked."""
+    if annotations:
+        ann_file = root / annotations
+        data = C.load_json_file(ann_file)
+    else:
+        cands = [p for p in _json_files(root) if pick(_peek_json(p))]
+        if not cands:
+            raise InputError(str(root), f"no {what} JSON found")
+        ann_file = cands[0]
+        data = C.load_json_file(ann_file)
+    if not isinstance(data, dict):
+        raise InputError(str(ann_file), f"a {what} file must be a JSON object, got {type(data).__name__}")
+    return ann_file, data
 
 
 def read_coco(root: Path, annotations: str | None = None, images_dir: str | None = None) -> Collection:
-    ann_file = root / annotations if annotations else None
-    if ann_file is None:
-        cands = []
-        for p in _json_files(root):
-            d = _peek_json(p)
-            if isinstance(d, dict) and "images" in d and "categories" in d and "annotations" in d:
-                if not (d["annotations"] and "segments_info" in d["annotations"][0]):
-                    cands.append((p, d))
-        if not cands:
-            raise DropUnit("annotations_missing", f"no COCO instances JSON in {root}")
-        ann_file, data = cands[0]
-    else:
-        data = _peek_json(ann_file)
-        if not isinstance(data, dict):
-            raise DropUnit("annotations_unreadable", str(ann_file))
+    ann_file, data = _top_level(root, annotations, _is_coco, "COCO instances")
+    entries = C.require_list(data, "images", ann_file)
+    anns = C.require_list(data, "annotations", ann_file)
+    cats = _categories(C.require_list(data, "categories", ann_file))
     img_dir = _images_dir(root, images_dir)
-    cats = {int(c["id"]): str(c["name"]) for c in data.get("categories", [])}
-    things = {int(c["id"]): bool(c.get("isthing", 1)) for c in data.get("categories", [])}
-    images: dict[str, ImageRecord] = {}
-    for im in data["images"]:
-        iid = str(im["id"])
-        images[iid] = ImageRecord(iid, img_dir / im["file_name"], int(im["width"]), int(im["height"]), [],
-                                  meta={"file_name": im["file_name"], "license": im.get("license")})
-    for a in sorted(data["annotations"], key=lambda a: (str(a["image_id"]), int(a["id"]))):
-        rec = images.get(str(a["image_id"]))
-        if rec is None:
-            continue
-        seg = a.get("segmentation")
-        if isinstance(seg, list):
-            kind, payload = ("polygon", seg) if seg else ("box", None)
-        elif isinstance(seg, dict):
-            kind, payload = "rle", seg
-        else:
-            kind, payload = "box", None
-        cid = int(a["category_id"])
-        rec.annotations.append(Annotation(str(a["id"]), cats.get(cid, str(cid)), _xywh(a["bbox"]), kind, payload,
-                                          bool(a.get("iscrowd", 0)), things.get(cid, True)))
+    images = _image_records(entries, img_dir, ann_file.name)
+
+    def parse(a: dict, what: str):
+        aid, ann = _coco_annotation(a, cats, what)
+        return aid, [ann]
+
+    _attach(images, anns, img_dir, ann_file.name, parse)
     return Collection(root, "coco", images)
 
 
 def read_coco_panoptic(root: Path, annotations: str | None = None, images_dir: str | None = None) -> Collection:
-    data = None
-    if annotations:
-        data = _peek_json(root / annotations)
-    else:
-        for p in _json_files(root):
-            d = _peek_json(p)
-            if isinstance(d, dict) and d.get("annotations") and "segments_info" in d["annotations"][0]:
-                data = d
-                break
-    if not isinstance(data, dict):
-        raise DropUnit("annotations_missing", f"no COCO panoptic JSON in {root}")
-    cat_list = data.get("categories") or []
+    ann_file, data = _top_level(root, annotations, _is_panoptic, "COCO panoptic")
+    cat_list = C.require_list(data, "categories", ann_file, required=False)
     if not cat_list and (root / "panoptic_coco_categories.json").is_file():
-        cat_list = _peek_json(root / "panoptic_coco_categories.json") or []
-    cats = {int(c["id"]): (str(c["name"]), bool(c.get("isthing", 1))) for c in cat_list}
+        cat_list = C.load_json_file(root / "panoptic_coco_categories.json")
+        if not isinstance(cat_list, list):
+            raise InputError(str(root / "panoptic_coco_categories.json"), "must be a JSON list of categories")
+    cats = _categories(cat_list)
     img_dir = _images_dir(root, images_dir)
     png_dirs = [d for d in sorted(root.iterdir()) if d.is_dir() and d != img_dir
                 and any(p.suffix == ".png" for p in d.iterdir())]
-    images: dict[str, ImageRecord] = {}
-    for im in data["images"]:
-        iid = str(im["id"])
-        images[iid] = ImageRecord(iid, img_dir / im["file_name"], int(im["width"]), int(im["height"]), [],
-                                  meta={"file_name": im["file_name"], "license": im.get("license")})
-    for a in sorted(data["annotations"], key=lambda a: str(a["image_id"])):
-        rec = images.get(str(a["image_id"]))
-        if rec is None:
-            continue
-        png = next((d / a["file_name"] for d in png_dirs if (d / a["file_name"]).is_file()), None)
-        rec.panoptic_png = png
-        for s in sorted(a["segments_info"], key=lambda s: int(s["id"])):
-            name, isthing = cats.get(int(s["category_id"]), (str(s["category_id"]), True))
-            rec.annotations.append(Annotation(str(s["id"]), name, _xywh(s["bbox"]), "panoptic", int(s["id"]),
-                                              bool(s.get("iscrowd", 0)), isthing))
+    images = _image_records(C.require_list(data, "images", ann_file), img_dir, ann_file.name)
+    pngs: dict[str, Path | None] = {}
+
+    def parse(a: dict, what: str):
+        iid = str(C.entry_id(a["image_id"]))
+        C.relative_file(a.get("file_name"), root, f"{what} file_name")  # a plain relative name, or the image drops
+        names = [C.relative_file(a.get("file_name"), d, f"{what} file_name") for d in png_dirs]
+        pngs[iid] = next((p for p in names if p.is_file()), None)
+        segs = a.get("segments_info")
+        if not isinstance(segs, list):
+            raise C.Bad("annotation_invalid", f"{what} segments_info must be a list")
+        out = []
+        for j, sg in enumerate(segs):
+            if not isinstance(sg, dict):
+                raise C.Bad("annotation_invalid", f"{what} segments_info[{j}] must be a mapping")
+            sid = C.int_id(sg.get("id"), f"{what} segment id")
+            _, name, isthing = _category(cats, sg.get("category_id"), f"{what} segment {sid}")
+            out.append((sid, Annotation(str(sid), name, C.bbox_xywh(sg.get("bbox"), f"{what} segment {sid} bbox"),
+                                        "panoptic", sid, C.flag(sg.get("iscrowd"), f"{what} iscrowd"), isthing)))
+        return iid, [ann for _, ann in sorted(out, key=lambda t: t[0])]
+
+    _attach(images, C.require_list(data, "annotations", ann_file), img_dir, ann_file.name, parse)
+    for iid, png in pngs.items():
+        images[iid].panoptic_png = png
     return Collection(root, "coco_panoptic", images)
 
 
-def _read_csv(path: Path) -> list[dict[str, str]]:
-    with open(path, "r", encoding="utf-8", newline="") as f:
-        return list(csv.DictReader(f))
+def _read_csv(path: Path, required: tuple[str, ...] = ()) -> list[dict[str, str]]:
+    try:
+        with open(path, "r", encoding="utf-8", newline="") as f:
+            reader = csv.DictReader(f)
+            missing = [c for c in required if c not in (reader.fieldnames or [])]
+            if missing:
+                raise InputError(str(path), f"missing column(s) {', '.join(missing)}")
+            return list(reader)
+    except (UnicodeDecodeError, csv.Error) as e:
+        raise InputError(str(path), f"not a readable CSV file ({type(e).__name__})") from None
+
+
+BOX_COLUMNS = ("ImageID", "LabelName", "XMin", "XMax", "YMin", "YMax")
+MASK_COLUMNS = ("MaskPath", "ImageID", "LabelName", "BoxXMin", "BoxYMin", "BoxXMax", "BoxYMax")
+
+
+def _num(row: dict[str, str], col: str, what: str) -> float:
+    try:
+        return C.finite(float(row.get(col) or "nan"), f"{what} {col}")
+    except ValueError:
+        raise C.Bad("annotation_invalid", f"{what} {col} is not a number: {str(row.get(col))[:30]!r}") from None
 
 
 def read_openimages(root: Path, annotations: str | None = None, images_dir: str | None = None) -> Collection:
     """OpenImages V4+ CSVs: boxes (ImageID, LabelName, XMin, XMax, YMin, YMax, Is*), optional masks
     (MaskPath, ImageID, LabelName, BoxXMin...) with PNGs under `masks/`, and class descriptions
     (LabelName,DisplayName; with or without a header). Coordinates are normalised to [0, 1]."""
-    csvs = sorted(root.glob("*.csv"))
     names: dict[str, str] = {}
     box_rows: list[dict[str, str]] = []
     mask_rows: list[dict[str, str]] = []
-    for p in csvs:
-        with open(p, "r", encoding="utf-8") as f:
-            head = f.readline()
+    for p in sorted(root.glob("*.csv")):
+        head = _csv_head(p)
         if "MaskPath" in head:
-            mask_rows.extend(_read_csv(p))
+            mask_rows.extend(_read_csv(p, MASK_COLUMNS))
         elif "XMin" in head:
-            box_rows.extend(_read_csv(p))
+            box_rows.extend(_read_csv(p, BOX_COLUMNS))
         else:
-            with open(p, "r", encoding="utf-8", newline="") as f:
-                for row in csv.reader(f):
-                    if len(row) >= 2 and row[0] != "LabelName":
-                        names[row[0]] = row[1]
+            try:
+                with open(p, "r", encoding="utf-8", newline="") as f:
+                    for row in csv.reader(f):
+                        if len(row) >= 2 and row[0] != "LabelName":
+                            names[row[0]] = row[1]
+            except (UnicodeDecodeError, csv.Error) as e:
+                raise InputError(str(p), f"not a readable CSV file ({type(e).__name__})") from None
     if annotations:
-        box_rows = _read_csv(root / annotations)
+        box_rows = _read_csv(root / annotations, BOX_COLUMNS)
     img_dir = _images_dir(root, images_dir)
     mask_dir = root / "masks"
     files = {p.stem: p for p in sorted(img_dir.iterdir()) if p.suffix.lower() in IMAGE_EXTS} if img_dir.is_dir() else {}
@@ -241,23 +349,70 @@ def read_openimages(root: Path, annotations: str | None = None, images_dir: str 
             images[iid] = ImageRecord(iid, files.get(iid, img_dir / f"{iid}.jpg"), None, None, [])
         return images[iid]
 
-    if mask_rows:
-        for k, r in enumerate(sorted(mask_rows, key=lambda r: (r["ImageID"], r["MaskPath"]))):
-            label = r["LabelName"]
-            bb = tuple(float(r[c]) for c in ("BoxXMin", "BoxYMin", "BoxXMax", "BoxYMax"))
-            rec_for(r["ImageID"]).annotations.append(Annotation(
-                f"m{k}", names.get(label, label), bb, "mask_png", mask_dir / r["MaskPath"],
-                attributes={}))
-    else:
-        for k, r in enumerate(sorted(box_rows, key=lambda r: (r["ImageID"], r["LabelName"], r["XMin"], r["YMin"]))):
-            label = r["LabelName"]
-            bb = (float(r["XMin"]), float(r["YMin"]), float(r["XMax"]), float(r["YMax"]))
-            rec_for(r["ImageID"]).annotations.append(Annotation(
-                f"b{k}", names.get(label, label), bb, "box", None, iscrowd=r.get("IsGroupOf", "0") == "1",
-                attributes={}))
+    rows = mask_rows if mask_rows else box_rows
+    order = (lambda r: (r["ImageID"], r["MaskPath"])) if mask_rows else \
+        (lambda r: (r["ImageID"], r["LabelName"], r["XMin"], r["YMin"]))
+    for k, r in enumerate(sorted(rows, key=lambda r: tuple(str(x) for x in order(r)))):
+        iid = C.entry_id(r["ImageID"])
+        if iid is None:
+            _invalid(images, f"#rows[{k}]", img_dir, C.Bad("annotation_invalid", f"CSV row {k} has no ImageID"))
+            continue
+        label = r["LabelName"]
+        try:
+            if mask_rows:
+                bb = tuple(_num(r, c, f"image {iid}") for c in ("BoxXMin", "BoxYMin", "BoxXMax", "BoxYMax"))
+                ann = Annotation(f"m{k}", names.get(label, label), bb, "mask_png",
+                                 C.relative_file(r["MaskPath"], mask_dir, f"image {iid} MaskPath"), attributes={})
+            else:
+                bb = (_num(r, "XMin", f"image {iid}"), _num(r, "YMin", f"image {iid}"),
+                      _num(r, "XMax", f"image {iid}"), _num(r, "YMax", f"image {iid}"))
+                ann = Annotation(f"b{k}", names.get(label, label), bb, "box", None,
+                                 iscrowd=r.get("IsGroupOf", "0") == "1", attributes={})
+        except C.Bad as bad:
+            rec_for(iid).meta.setdefault("invalid", (bad.reason, bad.detail))
+            continue
+        rec_for(iid).annotations.append(ann)
     for rec in images.values():
         rec.meta["normalised_boxes"] = True
     return Collection(root, "openimages", images)
+
+
+def _sunrgbd_record(d: Path) -> ImageRecord:
+    """One SUN RGB-D folder -> its record; any malformed value makes the record invalid (dropped on load)."""
+    rec = ImageRecord(d.name, d / "image.jpg", None, None, [])
+    try:
+        a = _peek_json(d / "annotation.json")
+        if not isinstance(a, dict):
+            raise C.Bad("annotation_invalid", f"{d.name}/annotation.json is not a readable JSON object")
+        K = np.asarray(a.get("K"), dtype=object)
+        if K.shape != (3, 3):
+            raise C.Bad("annotation_invalid", f"{d.name}: K must be a 3x3 matrix")
+        K = np.array([[C.finite(v, f"{d.name} K") for v in row] for row in K.tolist()])
+        scale = C.finite(a.get("depth_scale", 1000.0), f"{d.name} depth_scale")
+        if scale <= 0:
+            raise C.Bad("annotation_invalid", f"{d.name}: depth_scale must be > 0")
+        objects = a.get("objects")
+        if not isinstance(objects, list):
+            raise C.Bad("annotation_invalid", f"{d.name}: objects must be a list")
+        rec = ImageRecord(d.name, C.relative_file(a.get("image", "image.jpg"), d, f"{d.name} image"),
+                          C.positive_int(a.get("width"), f"{d.name} width"), C.positive_int(a.get("height"), f"{d.name} height"),
+                          [], depth_file=C.relative_file(a.get("depth", "depth.png"), d, f"{d.name} depth"),
+                          # the annotation's K is in 0-based pixel centres: +0.5 to the pixel-edge convention
+                          intrinsics=(float(K[0, 0]), float(K[1, 1]), float(K[0, 2]) + 0.5, float(K[1, 2]) + 0.5),
+                          meta={"depth_scale": scale})
+        for k, o in enumerate(objects):
+            b = o.get("bbox2d_xyxy") if isinstance(o, dict) else None
+            if not isinstance(b, list) or len(b) != 4:
+                raise C.Bad("annotation_invalid", f"{d.name}: object {k} bbox2d_xyxy must be [x0, y0, x1, y1]")
+            x0, y0, x1, y1 = (C.finite(v, f"{d.name} object {k} bbox2d_xyxy") for v in b)
+            if not isinstance(o.get("category"), str):
+                raise C.Bad("annotation_invalid", f"{d.name}: object {k} category must be a string")
+            # 1-based pixel centres -> continuous 0-based coordinates: first pixel x0 spans [x0-1, x0)
+            rec.annotations.append(Annotation(str(k), o["category"], (x0 - 1.0, y0 - 1.0, x1, y1), "box"))
+    except C.Bad as bad:
+        rec.annotations = []
+        rec.meta["invalid"] = (bad.reason, bad.detail)
+    return rec
 
 
 def read_sunrgbd(root: Path, annotations: str | None = None, images_dir: str | None = None) -> Collection:
@@ -265,20 +420,7 @@ def read_sunrgbd(root: Path, annotations: str | None = None, images_dir: str | N
     The 3D boxes and Rtilt are deliberately not read (they are the ground truth of the evaluation)."""
     images: dict[str, ImageRecord] = {}
     for d in sorted(p for p in root.iterdir() if p.is_dir() and (p / "annotation.json").is_file()):
-        a = _peek_json(d / "annotation.json")
-        if not isinstance(a, dict):
-            raise DropUnit("annotations_unreadable", str(d / "annotation.json"))
-        K = np.asarray(a["K"], float)
-        rec = ImageRecord(d.name, d / a.get("image", "image.jpg"), int(a["width"]), int(a["height"]), [],
-                          depth_file=d / a.get("depth", "depth.png"),
-                          # the annotation's K is in 0-based pixel centres: +0.5 to the pixel-edge convention
-                          intrinsics=(float(K[0, 0]), float(K[1, 1]), float(K[0, 2]) + 0.5, float(K[1, 2]) + 0.5),
-                          meta={"depth_scale": float(a.get("depth_scale", 1000.0))})
-        for k, o in enumerate(a["objects"]):
-            x0, y0, x1, y1 = (float(v) for v in o["bbox2d_xyxy"])
-            # 1-based pixel centres -> continuous 0-based coordinates: first pixel x0 spans [x0-1, x0)
-            rec.annotations.append(Annotation(str(k), str(o["category"]), (x0 - 1.0, y0 - 1.0, x1, y1), "box"))
-        images[d.name] = rec
+        images[d.name] = _sunrgbd_record(d)
     return Collection(root, "sunrgbd", images)
 
 
@@ -332,7 +474,10 @@ def read_panoptic_ids(path: Path, width: int, height: int, image_id: str) -> np.
     from refspatial_gen.core.serialize import decode_image
 
     try:
-        img = decode_image(Path(path).read_bytes())  # a label map: never turned by an EXIF tag
+        blob = Path(path).read_bytes()
+        if not blob:
+            raise ValueError("empty file")
+        img = decode_image(blob)  # a label map: never turned by an EXIF tag
     except (OSError, ValueError) as e:
         raise DropUnit("annotation_unreadable", f"image {image_id}: panoptic PNG {path} could not be decoded") from e
     if img.shape[:2] != (height, width):

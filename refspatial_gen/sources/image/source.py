@@ -23,12 +23,14 @@ from refspatial_gen.core.errors import DropUnit
 from refspatial_gen.core.geometry import Box3D, rot_z
 from refspatial_gen.core.mask import RLE
 from refspatial_gen.core.model import Frame, ObjectInstance, SupportSurface
+from refspatial_gen.perception.config import perception_field
 from refspatial_gen.schema import Field
 from refspatial_gen.sources.image import filters as F
 from refspatial_gen.sources.image.annotations import (
     FORMATS, GROUND_STUFF_PREFIXES, SUPPORT_STUFF_PREFIXES, Collection, ImageRecord, annotation_mask,
     load_collection, read_panoptic_ids,
 )
+from refspatial_gen.sources.image.checks import raise_if_invalid
 from refspatial_gen.sources.image.intrinsics import MODES, Intrinsics, resolve_intrinsics
 
 KEY_PREFIX = "image:"
@@ -96,6 +98,7 @@ CONFIG_FIELDS: dict[str, Field] = {
     "max_box_overlap": Field(float, default=0.25, min=0.0, max=1.0,
                              doc="geometric depth: two boxes sharing more of the smaller one's volume pass through "
                                  "each other; the occluded one is removed (1 = off)"),
+    "perception": perception_field(),  # unlabelled photos: annotations from local models (docs/perception.md)
 }
 
 
@@ -183,6 +186,10 @@ class ImageSource:
         if not input_path:
             raise ValueError("the image source needs an input folder (recipe `input:` or --input)")
         cfg = _with_defaults(config)
+        if cfg["perception"]:
+            from refspatial_gen.perception.photos import photo_ids
+            keys = [unit_key(iid) for iid in photo_ids(input_path, cfg)]
+            return keys if scenes is None else keys[:scenes]
         coll = load_collection(input_path, cfg["format"], cfg["annotations"], cfg["images_dir"])
         keys = [unit_key(iid) for iid in coll.ids()]
         return keys if scenes is None else keys[:scenes]
@@ -191,10 +198,14 @@ class ImageSource:
         iid = parse_key(unit_key)
         root = input_root(config)
         cfg = _with_defaults(config)
+        if cfg["perception"]:
+            from refspatial_gen.perception.photos import load_photo
+            return [load_photo(root, iid, rng, cfg, build_frame)]
         coll = load_collection(root, cfg["format"], cfg["annotations"], cfg["images_dir"])
         rec = coll.images.get(iid)
         if rec is None:
             raise DropUnit("unknown_image", f"{iid} not in {root}")
+        raise_if_invalid(rec.meta)  # a malformed annotation entry drops its image (sources/image/checks.py)
         return [build_frame(coll, rec, rng, cfg)]
 
 

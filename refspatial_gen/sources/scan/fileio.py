@@ -19,9 +19,14 @@ def read_rgb(path: str | Path) -> np.ndarray:
     if not p.is_file():
         raise DropUnit("image_missing", str(p))
     try:
-        return decode_image(p.read_bytes())
+        blob = p.read_bytes()
+        if not blob:
+            raise DropUnit("image_unreadable", f"{p}: empty file")
+        return decode_image(blob)
     except ValueError as e:
         raise DropUnit("image_unreadable", str(p)) from e
+    except OSError as e:
+        raise DropUnit("image_unreadable", f"{p}: {e.strerror or e}") from e
 
 
 def decode_depth_array(raw: np.ndarray, encoding: str) -> np.ndarray:
@@ -53,10 +58,18 @@ def read_depth(path: str | Path, encoding: str = "mm") -> np.ndarray:
     if p.suffix == ".npy":
         try:
             arr = np.load(p, allow_pickle=False)
-        except ValueError as e:
-            raise DropUnit("depth_unreadable", f"{p}: {e}") from e
+        except (ValueError, EOFError, OSError) as e:  # truncated, pickled or not an .npy at all
+            raise DropUnit("depth_unreadable", f"{p}: {type(e).__name__}") from e
+        if not isinstance(arr, np.ndarray) or arr.ndim != 2 or arr.dtype.kind not in "fiu":
+            raise DropUnit("depth_unreadable", f"{p}: expected a 2-D numeric array")
         return np.asarray(arr, dtype=np.float32)
-    raw = cv2.imdecode(np.fromfile(str(p), dtype=np.uint8), cv2.IMREAD_UNCHANGED)
+    try:
+        buf = np.fromfile(str(p), dtype=np.uint8)
+        if buf.size == 0:
+            raise DropUnit("depth_unreadable", f"{p}: empty file")
+        raw = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
+    except (OSError, cv2.error) as e:
+        raise DropUnit("depth_unreadable", f"{p}: {type(e).__name__}") from e
     if raw is None or raw.ndim != 2:
         raise DropUnit("depth_unreadable", str(p))
     if raw.dtype != np.uint16 and encoding != "float_m":

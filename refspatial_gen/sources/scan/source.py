@@ -17,6 +17,7 @@ import numpy as np
 
 from refspatial_gen.core.errors import DropUnit
 from refspatial_gen.core.model import Frame
+from refspatial_gen.perception.config import perception_field
 from refspatial_gen.schema import Field
 from refspatial_gen.sources.scan.fileio import DEPTH_ENCODINGS
 from refspatial_gen.sources.scan.frames import view_to_frame
@@ -45,6 +46,7 @@ CONFIG_FIELDS: dict[str, Field] = {
     "intrinsics": Field(dict, default=None, doc="{width,height,fx,fy,cx,cy} (OpenCV pixel centres) for trajectories without them"),
     "boxes_file": Field(str, default=None, doc="side file of boxes (generic schema) for readers without boxes"),
     "options": Field(dict, default=None, doc="reader-specific options (colmap, usd, mcap: see docs/scan.md)"),
+    "perception": perception_field(),  # box-less trajectories: objects from local models (docs/perception.md)
 }
 
 

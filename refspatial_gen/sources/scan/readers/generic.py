@@ -33,16 +33,42 @@ from typing import Any
 
 import numpy as np
 
-from refspatial_gen.core.errors import DropUnit
-from refspatial_gen.sources.scan.fileio import read_depth, read_rgb
-from refspatial_gen.sources.scan.readers.common import camera_from_K, parse_objects, read_json, to_h
+from refspatial_gen.core.errors import DropUnit, InputError
+from refspatial_gen.sources.scan.fileio import DEPTH_ENCODINGS, read_depth, read_rgb
+from refspatial_gen.sources.scan.readers import validate as V
+from refspatial_gen.sources.scan.readers.common import camera_from_K, parse_objects, to_h
 from refspatial_gen.sources.scan.readers.leveling import level_views
 from refspatial_gen.sources.scan.view import ScanView
 
 
-def _K(d: dict[str, Any]) -> tuple[np.ndarray, int, int]:
-    K = np.array([[d["fx"], 0, d["cx"]], [0, d["fy"], d["cy"]], [0, 0, 1.0]], float)
-    return K, int(d["width"]), int(d["height"])
+def _K(d: Any) -> tuple[np.ndarray, int, int]:
+    d = V.mapping(d, "intrinsics", "intrinsics_invalid")
+    K = np.array([[V.number(d.get("fx"), "fx", "intrinsics_invalid"), 0, V.number(d.get("cx"), "cx", "intrinsics_invalid")],
+                  [0, V.number(d.get("fy"), "fy", "intrinsics_invalid"), V.number(d.get("cy"), "cy", "intrinsics_invalid")],
+                  [0, 0, 1.0]], float)
+    return K, V.positive_int(d.get("width"), "width", "intrinsics_invalid"), \
+        V.positive_int(d.get("height"), "height", "intrinsics_invalid")
+
+
+def _frame_id(f: Any, k: int) -> str:
+    if isinstance(f, dict) and isinstance(f.get("id"), (str, int)) and not isinstance(f.get("id"), bool) \
+            and str(f["id"]) and not str(f["id"]).startswith("!") and "#" not in str(f["id"]):
+        return str(f["id"])
+    return f"!frame{k}"
+
+
+def _meta(root: Path) -> tuple[dict, list]:
+    path = Path(root) / "scan.json"
+    meta = V.index_json(path)
+    return meta, V.view_list(meta, path)
+
+
+def _encoding(meta: dict) -> str:
+    enc = meta.get("depth_encoding", "mm")
+    if enc not in DEPTH_ENCODINGS:
+        raise DropUnit("annotation_invalid", f"scan.json depth_encoding must be one of {', '.join(DEPTH_ENCODINGS)}, "
+                                             f"got {V.short(enc)}")
+    return enc
 
 
 class GenericReader:
@@ -50,50 +76,62 @@ class GenericReader:
 
     def detect(self, root: Path) -> bool:
         p = Path(root) / "scan.json"
-        return p.is_file() and "refspatial-scan/" in p.read_text()[:2000]
+        try:
+            return p.is_file() and "refspatial-scan/" in p.read_text(encoding="utf-8", errors="replace")[:2000]
+        except OSError:
+            return False
 
     def views(self, root: Path, config: dict[str, Any]) -> list[str]:
-        meta = read_json(Path(root) / "scan.json")
-        return sorted(str(f["id"]) for f in meta.get("frames", []))
+        _, frames = _meta(Path(root))
+        return sorted({_frame_id(f, k) for k, f in enumerate(frames)})
 
     def read(self, root: Path, view_id: str, config: dict[str, Any]) -> ScanView:
         root = Path(root)
-        meta = read_json(root / "scan.json")
-        frames = {str(f["id"]): f for f in meta.get("frames", [])}
-        f = frames.get(view_id)
-        if f is None:
+        try:
+            meta, frames = _meta(root)
+        except InputError as e:  # changed since planning
+            raise DropUnit("annotation_invalid", str(e)) from None
+        matches = [f for k, f in enumerate(frames) if _frame_id(f, k) == view_id]
+        if not matches:
             raise DropUnit("frame_missing", f"{root}: no frame {view_id}")
+        if view_id.startswith("!") or len(matches) > 1:
+            raise DropUnit("annotation_invalid", f"scan.json {view_id}: "
+                                                 f"{'listed twice' if len(matches) > 1 else 'no usable id'}")
+        f = matches[0]
         if f.get("world_from_cam") is None:
             raise DropUnit("pose_missing", f"{root}: frame {view_id} has no pose")
-        try:
-            K, W, H = _K(f.get("intrinsics") or meta["intrinsics"])
-        except (KeyError, TypeError, ValueError) as e:
-            raise DropUnit("intrinsics_invalid", f"{root}: frame {view_id}: {e}") from e
+        K, W, H = _K(f.get("intrinsics") or meta.get("intrinsics"))
         pose = to_h(f["world_from_cam"])
-        rgb = read_rgb(root / f["image"])
-        depth = read_depth(root / f["depth"], str(meta.get("depth_encoding", "mm"))) if f.get("depth") else None
+        rgb = read_rgb(V.file_in(root, f.get("image"), f"frame {view_id} image"))
+        depth = read_depth(V.file_in(root, f["depth"], f"frame {view_id} depth"), _encoding(meta)) if f.get("depth") else None
         per_frame = bool(meta.get("boxes_per_frame", False))
         boxes = parse_objects(f.get("objects", []) if per_frame else meta.get("objects", []), f"scan.json:{view_id}")
         cam = camera_from_K(K, W, H, pose, str(meta.get("pixel_origin", "center")))
-        view = ScanView("generic", str(meta.get("scene_id", root.name)), view_id, rgb, depth, cam, boxes, "given",
+        scene_id = meta.get("scene_id", root.name)
+        view = ScanView("generic", str(scene_id), view_id, rgb, depth, cam, boxes, "given",
                         boxes_per_frame=per_frame, meta={"intrinsics_source": "scan.json"})
         up = meta.get("up")
-        return level_views(view, None if up is None else np.asarray(up, float), lambda: _all_points(str(root.resolve())))
+        if up is not None:
+            up = V.matrix(up, ((3,),), "scan.json up")
+            if not np.linalg.norm(up) > 0:
+                raise DropUnit("annotation_invalid", "scan.json up must not be a zero vector")
+        return level_views(view, up, lambda: _all_points(str(root.resolve())))
 
 
 @lru_cache(maxsize=8)
 def _all_points(root_s: str) -> tuple[np.ndarray, np.ndarray]:
-    """World points of every frame (subsampled) and the mean camera up, for the floor fit (cached per scene)."""
+    """World points of every frame (subsampled) and the mean camera up, for the floor fit (cached per scene).
+    Frames that cannot be used (no pose, no depth, malformed) are left out of the fit."""
     root = Path(root_s)
-    meta = read_json(root / "scan.json")
+    meta, frames = _meta(root)
     pts, ups = [], []
-    for f in sorted(meta.get("frames", []), key=lambda f: str(f["id"])):
-        if f.get("world_from_cam") is None or not f.get("depth"):
+    for k, f in sorted(enumerate(frames), key=lambda kf: _frame_id(kf[1], kf[0])):
+        if not isinstance(f, dict) or f.get("world_from_cam") is None or not f.get("depth"):
             continue
-        K, W, H = _K(f.get("intrinsics") or meta["intrinsics"])
-        cam = camera_from_K(K, W, H, to_h(f["world_from_cam"]), str(meta.get("pixel_origin", "center")))
         try:
-            d = read_depth(root / f["depth"], str(meta.get("depth_encoding", "mm")))
+            K, W, H = _K(f.get("intrinsics") or meta.get("intrinsics"))
+            cam = camera_from_K(K, W, H, to_h(f["world_from_cam"]), str(meta.get("pixel_origin", "center")))
+            d = read_depth(V.file_in(root, f["depth"], "depth"), _encoding(meta))
         except DropUnit:
             continue
         if d.shape == (H, W) and np.all(np.isfinite(d)):

@@ -54,14 +54,25 @@ def _pb_class(schema_name: str):
 def decode_message(schema_name: str, encoding: str, data: bytes) -> dict[str, Any]:
     """A Foxglove message (protobuf or JSON) -> plain dict with field names as in the schema; bytes stay bytes."""
     if encoding == "json":
-        d = json.loads(data)
-        if isinstance(d.get("data"), str):
-            d["data"] = base64.b64decode(d["data"])
+        try:
+            d = json.loads(data)
+            if not isinstance(d, dict):
+                raise ValueError("not a JSON object")
+            if isinstance(d.get("data"), str):
+                d["data"] = base64.b64decode(d["data"])
+        except (ValueError, TypeError, RecursionError) as e:  # JSONDecodeError, binascii.Error
+            raise DropUnit("message_undecodable", f"{schema_name} JSON message: {type(e).__name__}") from None
         return d
     if encoding == "protobuf":
         from google.protobuf.json_format import MessageToDict
+        from google.protobuf.message import DecodeError
 
-        msg = _pb_class(schema_name).FromString(data)
+        try:
+            msg = _pb_class(schema_name).FromString(data)
+        except (DecodeError, ValueError, TypeError) as e:
+            raise DropUnit("message_undecodable", f"{schema_name}: {e}") from None
+        except (ImportError, AttributeError):
+            raise DropUnit("message_undecodable", f"unknown schema {schema_name!r}") from None
         d = MessageToDict(msg, preserving_proto_field_name=True)
         if hasattr(msg, "data") and isinstance(getattr(msg, "data"), bytes):
             d["data"] = bytes(msg.data)

@@ -13,23 +13,66 @@ from typing import Any
 
 import numpy as np
 
-from refspatial_gen.core.errors import DropUnit
+from refspatial_gen.core.errors import DropUnit, InputError
 from refspatial_gen.sources.scan.fileio import read_rgb
+from refspatial_gen.sources.scan.readers import validate as V
 from refspatial_gen.sources.scan.readers.common import box_from_json, camera_from_K, read_json, read_ply_xyz, to_h
 from refspatial_gen.sources.scan.view import ScanBox, ScanView
 
 
+def _meta(root: str) -> tuple[dict, list]:
+    """scene.json (it lists the views, so an unreadable one stops planning: InputError) and its frame list."""
+    path = Path(root) / "scene.json"
+    try:
+        st = path.stat()
+        stamp = (st.st_mtime_ns, st.st_size)
+    except OSError:
+        stamp = None
+    return _meta_cached(root, stamp)
+
+
 @lru_cache(maxsize=4)
-def _scene(root: str) -> tuple[dict, np.ndarray]:
-    """scene.json and the aligned point cloud (cached: every frame of a scene shares them)."""
-    meta = read_json(Path(root) / "scene.json")
-    A = np.asarray(meta.get("axis_align_matrix", np.eye(4)), float)
-    ply = Path(root) / str(meta.get("points_file", "points_raw.ply"))
-    pts = np.zeros((0, 3))
-    if ply.is_file():
-        xyz, _ = read_ply_xyz(ply)
-        pts = xyz @ A[:3, :3].T + A[:3, 3]
-    return meta, pts
+def _meta_cached(root: str, stamp: tuple | None) -> tuple[dict, list]:
+    path = Path(root) / "scene.json"
+    meta = V.index_json(path)
+    return meta, V.view_list(meta, path)
+
+
+def _view_id(f: Any, k: int) -> str:
+    """A frame's view id: its image's stem; a malformed entry gets `!frame<k>` (dropped when read)."""
+    if isinstance(f, dict) and isinstance(f.get("image"), str) and Path(f["image"]).stem \
+            and "#" not in f["image"] and not Path(f["image"]).stem.startswith("!"):
+        return Path(f["image"]).stem
+    return f"!frame{k}"
+
+
+@lru_cache(maxsize=4)
+def _points(root: str, points_file: str, align: tuple) -> np.ndarray:
+    """The aligned point cloud (cached: every frame of a scene shares it); read at load time, never planning."""
+    A = np.asarray(align, float).reshape(4, 4)
+    ply = V.file_in(Path(root), points_file, "points_file")
+    if not ply.is_file():
+        return np.zeros((0, 3))
+    xyz, _ = read_ply_xyz(ply)
+    return xyz @ A[:3, :3].T + A[:3, 3]
+
+
+def _boxes(meta: dict, root: Path) -> list[ScanBox]:
+    boxes = []
+    for k, o in enumerate(V.listing(meta.get("objects", []), "scene.json objects")):
+        try:
+            o = V.mapping(o, "object")
+            box = box_from_json(o.get("aligned_box"))
+            oid = o.get("id")
+            if isinstance(oid, bool) or not isinstance(oid, int) or oid < 0:
+                raise DropUnit("annotation_invalid", f"id must be an integer >= 0, got {V.short(oid)}")
+            if not isinstance(o.get("category"), str) or not o["category"]:
+                raise DropUnit("annotation_invalid", "category must be a name")
+        except DropUnit as e:
+            raise DropUnit(e.reason, f"{root.name}/scene.json object {k}: {e.detail}") from None
+        boxes.append(ScanBox(oid + 1, o["category"], box,
+                             provenance={"annotation": "scannet", "nyu40_name": o.get("nyu40_name")}))
+    return boxes
 
 
 @lru_cache(maxsize=4)
@@ -55,37 +98,39 @@ class ScanNetReader:
 
     def detect(self, root: Path) -> bool:
         p = Path(root) / "scene.json"
-        return p.is_file() and "axis_align_matrix" in p.read_text()
+        try:
+            return p.is_file() and "axis_align_matrix" in p.read_text(encoding="utf-8", errors="replace")
+        except OSError:
+            return False
 
     def views(self, root: Path, config: dict[str, Any]) -> list[str]:
-        meta, _ = _scene(str(Path(root).resolve()))
-        return sorted(Path(f["image"]).stem for f in meta.get("frames", []))
+        _, frames = _meta(str(Path(root).resolve()))
+        return sorted({_view_id(f, k) for k, f in enumerate(frames)})
 
     def read(self, root: Path, view_id: str, config: dict[str, Any]) -> ScanView:
         root = Path(root).resolve()
-        meta, pts = _scene(str(root))
-        frames = {Path(f["image"]).stem: f for f in meta.get("frames", [])}
-        f = frames.get(view_id)
-        if f is None:
+        try:
+            meta, frames = _meta(str(root))
+        except InputError as e:  # changed since planning
+            raise DropUnit("annotation_invalid", str(e)) from None
+        matches = [f for k, f in enumerate(frames) if _view_id(f, k) == view_id]
+        if not matches:
             raise DropUnit("frame_missing", f"{root}: no frame {view_id}")
+        if view_id.startswith("!") or len(matches) > 1:
+            raise DropUnit("annotation_invalid", f"{root.name}/scene.json {view_id}: "
+                                                 f"{'listed twice' if len(matches) > 1 else 'no image file name'}")
+        f = matches[0]
         if f.get("cam_to_world") is None:
             raise DropUnit("pose_missing", f"{root}: frame {view_id} has no pose")
-        pose = to_h(f["cam_to_world"])
-        if not np.all(np.isfinite(pose)):
-            raise DropUnit("pose_invalid", f"{root}: frame {view_id} pose has NaN/inf (ScanNet marks lost tracking so)")
-        A = np.asarray(meta.get("axis_align_matrix", np.eye(4)), float)
-        rgb = read_rgb(root / f["image"])
-        W, H = meta.get("image_size", [rgb.shape[1], rgb.shape[0]])
-        cam = camera_from_K(meta["K_color"], W, H, A @ pose, pixel_origin="center", gravity_known=True)
-        boxes = []
-        for o in meta.get("objects", []):
-            try:
-                box = box_from_json(o["aligned_box"])
-                oid = int(o["id"]) + 1
-            except (KeyError, TypeError, ValueError) as e:
-                raise DropUnit("annotation_invalid", f"{root}: {e}") from e
-            boxes.append(ScanBox(oid, str(o["category"]), box,
-                                 provenance={"annotation": "scannet", "nyu40_name": o.get("nyu40_name")}))
+        pose = to_h(f["cam_to_world"])  # NaN/inf (ScanNet marks lost tracking so) -> pose_invalid
+        A = V.matrix(meta.get("axis_align_matrix", np.eye(4).tolist()), ((4, 4),), "axis_align_matrix", "pose_invalid")
+        rgb = read_rgb(V.file_in(root, f["image"], f"frame {view_id} image"))
+        size = meta.get("image_size", [rgb.shape[1], rgb.shape[0]])
+        if not isinstance(size, list) or len(size) != 2:
+            raise DropUnit("intrinsics_invalid", f"{root.name}/scene.json image_size must be [width, height]")
+        cam = camera_from_K(meta.get("K_color"), size[0], size[1], A @ pose, pixel_origin="center", gravity_known=True)
+        boxes = _boxes(meta, root)
+        pts = _points(str(root), meta.get("points_file", "points_raw.ply"), tuple(A.reshape(-1).tolist()))
         if len(pts) == 0:
             raise DropUnit("points_missing", f"{root}: no point cloud to derive depth from")
         view = ScanView("scannet", str(meta.get("scene_id", root.name)), view_id, rgb, None, cam, boxes,
@@ -97,8 +142,11 @@ class ScanNetReader:
             labels, structural, note = _labels(str(root), len(pts))
             view.meta["instance_labels"] = note if labels is not None else f"none ({note})"
             if labels is not None:
-                explicit = {int(o["id"]) + 1: (int(o["instance_id"]) if "instance_id" in o else int(o["object_id"]) + 1)
-                            for o in meta.get("objects", []) if "instance_id" in o or "object_id" in o}
+                try:
+                    explicit = {int(o["id"]) + 1: (int(o["instance_id"]) if "instance_id" in o else int(o["object_id"]) + 1)
+                                for o in meta.get("objects", []) if "instance_id" in o or "object_id" in o}
+                except (TypeError, ValueError, OverflowError) as e:
+                    raise DropUnit("annotation_invalid", f"{root.name}/scene.json: instance_id/object_id: {e}") from None
                 view.point_labels = labels
                 view.box_instance = box_instances(boxes, pts, labels, explicit)
                 view.meta["structural_instances"] = sorted(structural)

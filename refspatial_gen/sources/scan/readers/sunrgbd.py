@@ -16,6 +16,7 @@ import numpy as np
 from refspatial_gen.core.errors import DropUnit
 from refspatial_gen.core.geometry import Box3D, rot_z
 from refspatial_gen.sources.scan.fileio import read_depth, read_rgb
+from refspatial_gen.sources.scan.readers import validate as V
 from refspatial_gen.sources.scan.readers.common import camera_from_K, read_json
 from refspatial_gen.sources.scan.view import ScanBox, ScanView
 
@@ -23,7 +24,11 @@ F = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
 
 
 def _is_sample(p: Path) -> bool:
-    return (p / "annotation.json").is_file() and '"Rtilt"' in (p / "annotation.json").read_text()
+    try:
+        return (p / "annotation.json").is_file() and \
+            '"Rtilt"' in (p / "annotation.json").read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return False
 
 
 class SunRGBDReader:
@@ -43,33 +48,40 @@ class SunRGBDReader:
 
     def read(self, root: Path, view_id: str, config: dict[str, Any]) -> ScanView:
         folder = Path(root) / view_id
-        ann = read_json(folder / "annotation.json")
-        try:
-            K = np.array(ann["K"], float)
-            Rtilt = np.array(ann["Rtilt"], float)
-            W, H = int(ann["width"]), int(ann["height"])
-            scale = float(ann.get("depth_scale", 1000.0))
-        except (KeyError, TypeError, ValueError) as e:
-            raise DropUnit("annotation_invalid", f"{folder}: {e}") from e
-        if Rtilt.shape != (3, 3) or not np.all(np.isfinite(Rtilt)):
-            raise DropUnit("pose_invalid", f"{folder}: Rtilt {Rtilt.tolist()}")
+        ann = V.mapping(read_json(folder / "annotation.json"), f"{view_id}/annotation.json")
+        Rtilt = V.matrix(ann.get("Rtilt"), ((3, 3),), f"{folder}: Rtilt", "pose_invalid")
+        W = V.positive_int(ann.get("width"), f"{folder}: width")
+        H = V.positive_int(ann.get("height"), f"{folder}: height")
+        scale = V.number(ann.get("depth_scale", 1000.0), f"{folder}: depth_scale")
+        if scale <= 0:
+            raise DropUnit("annotation_invalid", f"{folder}: depth_scale must be > 0")
         T = np.eye(4)
         T[:3, :3] = Rtilt @ F.T
-        rgb = read_rgb(folder / ann.get("image", "image.jpg"))
-        depth = read_depth(folder / ann.get("depth", "depth.png"), "mm") * np.float32(1000.0 / scale)
-        cam = camera_from_K(K, W, H, T, pixel_origin="center", gravity_known=True)
-        boxes = []
-        for k, o in enumerate(ann.get("objects", [])):
-            try:
-                box = Box3D(np.array(o["center"], float), np.array(o["size"], float), rot_z(float(o["yaw"])))
-                b2 = o.get("bbox2d_xyxy")
-            except (KeyError, TypeError, ValueError) as e:
-                raise DropUnit("annotation_invalid", f"{folder}: object {k}: {e}") from e
-            prov: dict[str, Any] = {"annotation": "sunrgbd"}
-            if b2 is not None:  # 1-based MATLAB pixel corners -> 0-based
-                prov["bbox2d_annotated"] = [round(float(b2[0]) - 1, 3), round(float(b2[1]) - 1, 3),
-                                            round(float(b2[2]) - 1, 3), round(float(b2[3]) - 1, 3)]
-            boxes.append(ScanBox(k + 1, str(o["category"]), box, provenance=prov))
+        rgb = read_rgb(V.file_in(folder, ann.get("image", "image.jpg"), "image"))
+        depth = read_depth(V.file_in(folder, ann.get("depth", "depth.png"), "depth"), "mm") * np.float32(1000.0 / scale)
+        cam = camera_from_K(ann.get("K"), W, H, T, pixel_origin="center", gravity_known=True)
+        boxes = [_box(o, k, folder) for k, o in enumerate(V.listing(ann.get("objects", []), f"{folder}: objects"))]
         scene = folder.resolve().name
         return ScanView("sunrgbd", scene, scene, rgb, depth, cam, boxes, "rtilt", boxes_per_frame=True,
                         meta={"intrinsics_source": "annotation", "depth_source": "sensor"})
+
+
+def _box(o: Any, k: int, folder: Path) -> ScanBox:
+    """One annotated object; anything malformed drops the view (annotation_invalid)."""
+    try:
+        o = V.mapping(o, "object")
+        size = V.matrix(o.get("size"), ((3,),), "size")
+        if np.any(size < 0):
+            raise DropUnit("annotation_invalid", f"size must be >= 0, got {size.tolist()}")
+        box = Box3D(V.matrix(o.get("center"), ((3,),), "center"), size, rot_z(V.number(o.get("yaw"), "yaw")))
+        if not isinstance(o.get("category"), str) or not o["category"]:
+            raise DropUnit("annotation_invalid", "category must be a name")
+        b2 = o.get("bbox2d_xyxy")
+        prov: dict[str, Any] = {"annotation": "sunrgbd"}
+        if b2 is not None:  # 1-based MATLAB pixel corners -> 0-based
+            b2 = V.matrix(b2, ((4,),), "bbox2d_xyxy")
+            prov["bbox2d_annotated"] = [round(float(b2[0]) - 1, 3), round(float(b2[1]) - 1, 3),
+                                        round(float(b2[2]) - 1, 3), round(float(b2[3]) - 1, 3)]
+    except DropUnit as e:
+        raise DropUnit(e.reason, f"{folder}: object {k}: {e.detail}") from None
+    return ScanBox(k + 1, o["category"], box, provenance=prov)
