@@ -19,14 +19,20 @@ SMALL = {"width": 96, "height": 72, "renderer": "blender", "blender": {"samples"
 def _recipe(tmp_path: Path, config: str) -> Path:
     p = tmp_path / "r.yaml"
     tpl = REPO / "recipes" / "templates" / "locate.yaml"
-    p.write_text(f"name: t\nsources:\n  - kind: sim\n    config:\n{config}qa:\n  families:\n"
-                 f"    locate: {{weight: 1.0, templates: ['{tpl}']}}\n")
+    p.write_text(
+        f"name: t\nsources:\n  - kind: sim\n    config:\n{config}qa:\n  families:\n"
+        f"    locate: {{weight: 1.0, templates: ['{tpl}']}}\n"
+    )
     return p
 
 
 def test_blender_section_is_checked_with_lines(tmp_path):
-    errs = lint_file(_recipe(tmp_path, "      renderer: mujoco\n      blender:\n        samples: 0\n        device: tpu\n"
-                                       "        sample: 3\n"))
+    errs = lint_file(
+        _recipe(
+            tmp_path,
+            "      renderer: mujoco\n      blender:\n        samples: 0\n        device: tpu\n        sample: 3\n",
+        )
+    )
     msgs = sorted((e.line, e.message) for e in errs)
     assert [ln for ln, _ in msgs] == [7, 8, 9], msgs
     assert "samples must be >= 1" in msgs[0][1] and "device must be one of cpu, cuda, optix, auto" in msgs[1][1]
@@ -34,7 +40,9 @@ def test_blender_section_is_checked_with_lines(tmp_path):
 
 
 def test_renderer_blender_without_its_environment_is_a_recipe_error(tmp_path):
-    errs = lint_file(_recipe(tmp_path, f"      renderer: blender\n      blender: {{python: {tmp_path / 'no' / 'python'}}}\n"))
+    errs = lint_file(
+        _recipe(tmp_path, f"      renderer: blender\n      blender: {{python: {tmp_path / 'no' / 'python'}}}\n")
+    )
     assert len(errs) == 1 and errs[0].line == 5 and "make setup-blender" in errs[0].message
 
 
@@ -59,10 +67,13 @@ def test_agreement_counts_shifted_masks_and_wrong_depths():
     assert tiny["objects"] == 1 and tiny["mask_iou_min"] == 1.0  # object 1 (100 px) is below min_pixels
     hole = depth.copy()
     hole[0, :6] = 0  # nothing drawn in one render: those pixels disagree
-    assert agreement(depth, ids, hole, ids, min_pixels=10, depth_tol=0.01, depth_rel_tol=0.0)["depth_agree"] == round(1 - 6 / 2400, 4)
+    assert agreement(depth, ids, hole, ids, min_pixels=10, depth_tol=0.01, depth_rel_tol=0.0)["depth_agree"] == round(
+        1 - 6 / 2400, 4
+    )
 
 
 # ------------------------------------------------------------------ real Blender renders (slow)
+
 
 def _need_blender():
     from refspatial_gen.sources.sim.blender_render import missing_reason, settings
@@ -163,15 +174,36 @@ def test_blender_camera_matches_opencv_intrinsics_off_centre_and_non_square():
     wall = np.array([[-9, 1.0, 0], [9, 1.0, 0], [9, 1.0, 9], [-9, 1.0, 9]], float)
     cube = trimesh.creation.box(extents=[0.2, 0.2, 0.2])
     T = look_at([0.7, -1.6, 1.3], [0.1, 0.2, 0.3])
-    cams = [Camera(96, 72, 100.0, 100.0, 48.0, 36.0, T), Camera(96, 72, 100.0, 88.0, 41.0, 30.5, T),
-            Camera(96, 72, 70.0, 84.0, 55.0, 40.0, look_at([-1.2, -0.8, 1.6], [0.0, 0.0, 0.1]))]
+    cams = [
+        Camera(96, 72, 100.0, 100.0, 48.0, 36.0, T),
+        Camera(96, 72, 100.0, 88.0, 41.0, 30.5, T),
+        Camera(96, 72, 70.0, 84.0, 55.0, 40.0, look_at([-1.2, -0.8, 1.6], [0.0, 0.0, 0.1])),
+    ]
     grey = Look((0.6, 0.6, 0.6, 1.0))
     at = np.eye(4)
     at[:3, 3] = [0.0, 0.0, 0.1]
-    rs = RenderScene([MeshItem("floor", 0, floor, quad, None, np.eye(4), grey), MeshItem("wall", 0, wall, quad, None, np.eye(4), grey),
-                      MeshItem("cube", 1, np.asarray(cube.vertices), np.asarray(cube.faces), None, at, grey)],
-                     [{"kind": "directional", "pos": [0, 0, 3], "direction": [0, 0, -1], "color": [1, 1, 1], "intensity": 1.0,
-                       "base": 0.5, "diffuse": [0.5] * 3, "shadow": True, "cutoff_deg": 70}], cams, 0.3)
+    rs = RenderScene(
+        [
+            MeshItem("floor", 0, floor, quad, None, np.eye(4), grey),
+            MeshItem("wall", 0, wall, quad, None, np.eye(4), grey),
+            MeshItem("cube", 1, np.asarray(cube.vertices), np.asarray(cube.faces), None, at, grey),
+        ],
+        [
+            {
+                "kind": "directional",
+                "pos": [0, 0, 3],
+                "direction": [0, 0, -1],
+                "color": [1, 1, 1],
+                "intensity": 1.0,
+                "base": 0.5,
+                "diffuse": [0.5] * 3,
+                "shadow": True,
+                "cutoff_deg": 70,
+            }
+        ],
+        cams,
+        0.3,
+    )
 
     class Described:
         def describe(self, cams):
@@ -179,7 +211,7 @@ def test_blender_camera_matches_opencv_intrinsics_off_centre_and_non_square():
 
     outs = render_blender(Described(), cams, {**settings({}), "samples": 1})
     v, u = np.mgrid[0:72, 0:96] + 0.5
-    for cam, (rgb, depth, ids) in zip(cams, outs):
+    for cam, (_rgb, depth, ids) in zip(cams, outs):
         d = np.stack([(u - cam.cx) / cam.fx, (v - cam.cy) / cam.fy, np.ones_like(u)], -1) @ cam.world_from_cam[:3, :3].T
         p = cam.world_from_cam[:3, 3]
         with np.errstate(divide="ignore", invalid="ignore"):

@@ -21,8 +21,13 @@ REPO = Path(__file__).resolve().parents[1]
 
 def _small_recipe(tmp_path: Path, renderer: str = "blender") -> Path:
     text = (REPO / "recipes" / "sim_blender.yaml").read_text()
-    for a, b in (("width: 640", "width: 96"), ("height: 480", "height: 72"), ("samples: 16 ", "samples: 4 "),
-                 ("templates/", f"{REPO}/recipes/templates/"), ("renderer: blender", f"renderer: {renderer}")):
+    for a, b in (
+        ("width: 640", "width: 96"),
+        ("height: 480", "height: 72"),
+        ("samples: 16 ", "samples: 4 "),
+        ("templates/", f"{REPO}/recipes/templates/"),
+        ("renderer: blender", f"renderer: {renderer}"),
+    ):
         assert a in text, a
         text = text.replace(a, b)
     p = tmp_path / f"sim_{renderer}_small.yaml"
@@ -31,17 +36,43 @@ def _small_recipe(tmp_path: Path, renderer: str = "blender") -> Path:
 
 
 def _shards(recipe: Path, out: Path, workers: int) -> None:
-    r = subprocess.run([sys.executable, "-m", "refspatial_gen.cli", "shards", "--recipe", str(recipe), "--out", str(out),
-                        "--scenes", "4", "--workers", str(workers), "--quiet", "--strict", "--no-report"],
-                       capture_output=True, text=True)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "refspatial_gen.cli",
+            "shards",
+            "--recipe",
+            str(recipe),
+            "--out",
+            str(out),
+            "--scenes",
+            "4",
+            "--workers",
+            str(workers),
+            "--quiet",
+            "--strict",
+            "--no-report",
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 0, r.stderr[-2000:]
 
 
 def _labels(out: Path) -> list:
     """Per sample and frame: the objects' ids, categories, masks and 3D boxes."""
-    return [[[(o["id"], o["category"], json.dumps(o["mask"], sort_keys=True), json.dumps(o["box"], sort_keys=True))
-              for o in f["objects"]] for f in s["frames"]]
-            for shard in sorted(out.glob("shard-*.mcap")) for s in read_sample_meta(shard)]
+    return [
+        [
+            [
+                (o["id"], o["category"], json.dumps(o["mask"], sort_keys=True), json.dumps(o["box"], sort_keys=True))
+                for o in f["objects"]
+            ]
+            for f in s["frames"]
+        ]
+        for shard in sorted(out.glob("shard-*.mcap"))
+        for s in read_sample_meta(shard)
+    ]
 
 
 def test_sim_blender_recipe_verifies_and_is_byte_identical_across_workers(tmp_path):

@@ -34,28 +34,60 @@ WORKER = Path(__file__).resolve().parent / "blender_worker.py"
 BPY_VERSION = "5.0.1"  # pinned in requirements-blender.txt
 
 SETTINGS: dict[str, Field] = {
-    "device": Field(str, default="cpu", choices=("cpu", "cuda", "optix", "auto"),
-                    doc="Cycles device; auto = the best GPU backend found, else CPU (GPU paths untested on CPU-only machines)"),
-    "samples": Field(int, default=16, min=1, max=65536, doc="path-tracing samples per pixel (fixed: no adaptive sampling)"),
-    "denoiser": Field(str, default="oidn", choices=("oidn", "optix", "none"), doc="OpenImageDenoise, OptiX (NVIDIA GPU) or none"),
+    "device": Field(
+        str,
+        default="cpu",
+        choices=("cpu", "cuda", "optix", "auto"),
+        doc="Cycles device; auto = the best GPU backend found, else CPU (GPU paths untested on CPU-only machines)",
+    ),
+    "samples": Field(
+        int, default=16, min=1, max=65536, doc="path-tracing samples per pixel (fixed: no adaptive sampling)"
+    ),
+    "denoiser": Field(
+        str, default="oidn", choices=("oidn", "optix", "none"), doc="OpenImageDenoise, OptiX (NVIDIA GPU) or none"
+    ),
     "light_bounces": Field(int, default=4, min=0, max=64, doc="Cycles max bounces (diffuse/glossy capped by it)"),
     "threads": Field(int, default=0, min=0, max=1024, doc="Cycles CPU threads; 0 = all cores (same bytes either way)"),
     "seed": Field(int, default=0, min=0, max=2**31 - 1, doc="Cycles sampling seed (fixed: same scene, same bytes)"),
-    "view_transform": Field(str, default="Khronos PBR Neutral", choices=("AgX", "Standard", "Filmic", "Khronos PBR Neutral"),
-                            doc="Blender colour management view transform"),
+    "view_transform": Field(
+        str,
+        default="Khronos PBR Neutral",
+        choices=("AgX", "Standard", "Filmic", "Khronos PBR Neutral"),
+        doc="Blender colour management view transform",
+    ),
     "exposure": Field(float, default=0.0, min=-10, max=10, doc="exposure in stops"),
-    "light_gain": Field(float, default=1.0, min=0, max=100, doc="multiplies every light's power (after RefSpatial's 0.6-1.4x)"),
-    "ambient_gain": Field(float, default=1.0, min=0, max=100, doc="multiplies the grey world light (MuJoCo's ambient level)"),
-    "min_mask_iou": Field(float, default=0.9, min=0, max=1, doc="drop when an object's Blender/MuJoCo mask IoU is lower"),
+    "light_gain": Field(
+        float, default=1.0, min=0, max=100, doc="multiplies every light's power (after RefSpatial's 0.6-1.4x)"
+    ),
+    "ambient_gain": Field(
+        float, default=1.0, min=0, max=100, doc="multiplies the grey world light (MuJoCo's ambient level)"
+    ),
+    "min_mask_iou": Field(
+        float, default=0.9, min=0, max=1, doc="drop when an object's Blender/MuJoCo mask IoU is lower"
+    ),
     "min_depth_agree": Field(float, default=0.97, min=0, max=1, doc="drop when fewer pixels' depths agree"),
     "depth_tol": Field(float, default=0.01, min=0, doc="metres: depths agree within depth_tol + depth_rel_tol * z"),
     "depth_rel_tol": Field(float, default=0.01, min=0),
     "min_pixels": Field(int, default=50, min=1, doc="objects smaller than this in both renders are not IoU-checked"),
-    "timeout_s": Field(float, default=1800.0, min=1, doc="seconds per scene before the worker is killed and the unit dropped"),
-    "python": Field(str, default="", doc="the Blender environment's python (default $REFSPATIAL_BLENDER_PYTHON or .venv-blender)"),
+    "timeout_s": Field(
+        float, default=1800.0, min=1, doc="seconds per scene before the worker is killed and the unit dropped"
+    ),
+    "python": Field(
+        str, default="", doc="the Blender environment's python (default $REFSPATIAL_BLENDER_PYTHON or .venv-blender)"
+    ),
 }
-_WORKER_KEYS = ("device", "samples", "denoiser", "light_bounces", "threads", "seed", "view_transform", "exposure",
-                "light_gain", "ambient_gain")
+_WORKER_KEYS = (
+    "device",
+    "samples",
+    "denoiser",
+    "light_bounces",
+    "threads",
+    "seed",
+    "view_transform",
+    "exposure",
+    "light_gain",
+    "ambient_gain",
+)
 
 
 def settings(config: dict[str, Any] | None) -> dict[str, Any]:
@@ -73,9 +105,15 @@ def missing_reason(s: dict[str, Any]) -> str | None:
     """Why Blender cannot be used (None when its environment has bpy); cheap: does not import bpy."""
     py = blender_python(s)
     if not py.exists():
-        return f"the Blender environment {py} is missing: run `make setup-blender` (bpy=={BPY_VERSION}, ~0.4 GB download)"
-    r = subprocess.run([str(py), "-I", "-c", "import importlib.util as u; print(u.find_spec('bpy') is not None)"],
-                       capture_output=True, text=True, timeout=60)
+        return (
+            f"the Blender environment {py} is missing: run `make setup-blender` (bpy=={BPY_VERSION}, ~0.4 GB download)"
+        )
+    r = subprocess.run(
+        [str(py), "-I", "-c", "import importlib.util as u; print(u.find_spec('bpy') is not None)"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     if r.stdout.strip() != "True":
         return f"{py} has no bpy: run `make setup-blender`"
     return None
@@ -89,8 +127,14 @@ class BlenderWorker:
         self.log = self.tmp / "worker.log"
         env = {k: v for k, v in os.environ.items() if not k.startswith("PYTHON")}
         with open(self.log, "wb") as err:
-            self.proc = subprocess.Popen([str(python), "-I", str(WORKER), "--serve"], stdin=subprocess.PIPE,
-                                         stdout=subprocess.PIPE, stderr=err, env=env, cwd=self.tmp)
+            self.proc = subprocess.Popen(
+                [str(python), "-I", str(WORKER), "--serve"],
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                stderr=err,
+                env=env,
+                cwd=self.tmp,
+            )
 
     def request(self, req: dict[str, Any], timeout: float) -> dict[str, Any]:
         req = {**req, "log": str(self.log)}
@@ -175,8 +219,15 @@ def render_blender(scene, cams: list[Camera], s: dict[str, Any]) -> list[tuple[n
     req_dir = w.tmp / "req"
     shutil.rmtree(req_dir, ignore_errors=True)
     scene.describe(cams).save(req_dir / "scene")
-    reply = w.request({"op": "render", "scene": str(req_dir / "scene"), "out": str(req_dir / "out"),
-                       "settings": {k: s[k] for k in _WORKER_KEYS}}, float(s["timeout_s"]))
+    reply = w.request(
+        {
+            "op": "render",
+            "scene": str(req_dir / "scene"),
+            "out": str(req_dir / "out"),
+            "settings": {k: s[k] for k in _WORKER_KEYS},
+        },
+        float(s["timeout_s"]),
+    )
     if not reply.get("ok"):
         raise DropUnit("render_failed", reply.get("error", "Blender failed"))
     for k, v in reply.get("seconds", {}).items():
@@ -207,11 +258,20 @@ class BlenderRenderer:
         ref = render_views(scene.sim, cams)
         outs = []
         for v, (r, (rgb, depth, ids)) in enumerate(zip(ref, render_blender(scene, cams, s))):
-            stats = agreement(r.depth, r.instance, depth, ids, min_pixels=int(s["min_pixels"]),
-                              depth_tol=float(s["depth_tol"]), depth_rel_tol=float(s["depth_rel_tol"]))
+            stats = agreement(
+                r.depth,
+                r.instance,
+                depth,
+                ids,
+                min_pixels=int(s["min_pixels"]),
+                depth_tol=float(s["depth_tol"]),
+                depth_rel_tol=float(s["depth_rel_tol"]),
+            )
             why = disagreement(stats, float(s["min_mask_iou"]), float(s["min_depth_agree"]))
             if why:
                 raise DropUnit("renderer_disagree", f"view {v}: Blender and MuJoCo disagree: {why}")
             check = {k: stats[k] for k in ("mask_iou_mean", "mask_iou_min", "depth_agree")}
-            outs.append(BlenderOut(rgb, r.depth, r.instance, depth, ids, {"renderer": "blender", "render_check": check}))
+            outs.append(
+                BlenderOut(rgb, r.depth, r.instance, depth, ids, {"renderer": "blender", "render_check": check})
+            )
         return outs

@@ -89,9 +89,17 @@ def _image(folder: Path, rel: str, cache: dict):
 
 def bsdf_params(look: dict[str, Any]) -> dict[str, float]:
     """MuJoCo material parameters -> Principled BSDF inputs (see the module docstring)."""
-    spec, shin, refl = float(look.get("specular", 0.3)), float(look.get("shininess", 0.3)), float(look.get("reflectance", 0.0))
-    return {"Roughness": float(np.clip(1.0 - 0.9 * shin, 0.08, 1.0)), "Specular IOR Level": float(np.clip(spec, 0.0, 1.0)),
-            "Metallic": 1.0 if refl >= 0.15 else 0.0, "Coat Weight": float(np.clip(refl * 4.0, 0.0, 0.5)) if refl < 0.15 else 0.0}
+    spec, shin, refl = (
+        float(look.get("specular", 0.3)),
+        float(look.get("shininess", 0.3)),
+        float(look.get("reflectance", 0.0)),
+    )
+    return {
+        "Roughness": float(np.clip(1.0 - 0.9 * shin, 0.08, 1.0)),
+        "Specular IOR Level": float(np.clip(spec, 0.0, 1.0)),
+        "Metallic": 1.0 if refl >= 0.15 else 0.0,
+        "Coat Weight": float(np.clip(refl * 4.0, 0.0, 0.5)) if refl < 0.15 else 0.0,
+    }
 
 
 def make_material(name: str, look: dict[str, Any], folder: Path, images: dict):
@@ -154,7 +162,7 @@ def add_lights(lights: list[dict[str, Any]], ambient: float, target_z: float, ga
         else:
             li = bpy.data.lights.new(f"light{i}", "SPOT")
             d = spot_distance(L["pos"], L["direction"], target_z)
-            li.energy = 4.0 * math.pi ** 2 * d * d * level
+            li.energy = 4.0 * math.pi**2 * d * d * level
             li.spot_size, li.spot_blend = 2.0 * math.radians(float(L["cutoff_deg"])), SPOT_BLEND
             li.shadow_soft_size = SPOT_RADIUS
         li.color = tuple(float(x) for x in L["color"])
@@ -208,8 +216,15 @@ def build(folder: str | Path, light_gain: float = 1.0, ambient_gain: float = 1.0
         if key not in mats:
             mats[key] = make_material(f"mat{len(mats)}", m["look"], folder, images)
         i = m["arrays"]
-        add_mesh(m["name"], arrays[f"v{i}"], arrays[f"f{i}"], arrays.get(f"uv{i}") if m["has_uv"] else None,
-                 np.asarray(m["world_from_local"]), m["instance_id"], mats[key])
+        add_mesh(
+            m["name"],
+            arrays[f"v{i}"],
+            arrays[f"f{i}"],
+            arrays.get(f"uv{i}") if m["has_uv"] else None,
+            np.asarray(m["world_from_local"]),
+            m["instance_id"],
+            mats[key],
+        )
         if m["instance_id"] > 0:
             obj_z.append(float(m["world_from_local"][2][3]))
     target_z = float(np.median(obj_z)) if obj_z else 0.8

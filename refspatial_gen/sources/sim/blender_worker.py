@@ -73,7 +73,9 @@ def select_device(device: str) -> str:
         sc.cycles.device = "CPU"
         return "cpu"
     if kind not in avail:
-        raise RuntimeError(f"device {device!r} asked for, but Cycles finds no {kind.upper()} GPU (found: {avail or 'none'})")
+        raise RuntimeError(
+            f"device {device!r} asked for, but Cycles finds no {kind.upper()} GPU (found: {avail or 'none'})"
+        )
     prefs = bpy.context.preferences.addons["cycles"].preferences
     prefs.compute_device_type = kind.upper()
     prefs.get_devices()
@@ -216,7 +218,9 @@ def serve() -> int:
                 raise ValueError(f"unknown op {req['op']!r}")
             reply.write(json.dumps({"ok": True, **res}) + "\n")
         except Exception as e:  # reported to the generator, which drops the unit with the reason
-            reply.write(json.dumps({"ok": False, "error": f"{type(e).__name__}: {e}", "trace": traceback.format_exc()}) + "\n")
+            reply.write(
+                json.dumps({"ok": False, "error": f"{type(e).__name__}: {e}", "trace": traceback.format_exc()}) + "\n"
+            )
     return 0
 
 
@@ -229,8 +233,18 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.serve:
         return serve()
-    s = {"device": "cpu", "samples": 32, "denoiser": "oidn", "light_bounces": 4, "threads": 0, "seed": 0,
-         "view_transform": "Khronos PBR Neutral", "exposure": 0.0, "light_gain": 1.0, "ambient_gain": 1.0} | json.loads(args.settings)
+    s = {
+        "device": "cpu",
+        "samples": 32,
+        "denoiser": "oidn",
+        "light_bounces": 4,
+        "threads": 0,
+        "seed": 0,
+        "view_transform": "Khronos PBR Neutral",
+        "exposure": 0.0,
+        "light_gain": 1.0,
+        "ambient_gain": 1.0,
+    } | json.loads(args.settings)
     print(json.dumps(render_scene(args.scene, args.out, s)))
     return 0
 

@@ -13,8 +13,16 @@ from typing import Any
 import numpy as np
 
 
-def agreement(ref_depth: np.ndarray, ref_ids: np.ndarray, depth: np.ndarray, ids: np.ndarray, *, min_pixels: int,
-              depth_tol: float, depth_rel_tol: float) -> dict[str, Any]:
+def agreement(
+    ref_depth: np.ndarray,
+    ref_ids: np.ndarray,
+    depth: np.ndarray,
+    ids: np.ndarray,
+    *,
+    min_pixels: int,
+    depth_tol: float,
+    depth_rel_tol: float,
+) -> dict[str, Any]:
     """Mask IoU of every object that covers >= `min_pixels` in either render, and the fraction of pixels
     with geometry in either render whose depths agree within `depth_tol + depth_rel_tol * z` (a pixel
     with geometry in one render only disagrees)."""
@@ -32,9 +40,13 @@ def agreement(ref_depth: np.ndarray, ref_ids: np.ndarray, depth: np.ndarray, ids
     close = both & (np.abs(depth - ref_depth) <= depth_tol + depth_rel_tol * ref_depth)
     n = int(seen.sum())
     worst = min(ious, key=lambda k: (ious[k], k)) if ious else None
-    return {"objects": len(ious), "mask_iou_mean": round(float(np.mean(list(ious.values()))), 4) if ious else 1.0,
-            "mask_iou_min": round(ious[worst], 4) if ious else 1.0, "worst_id": worst,
-            "depth_agree": round(float(close.sum() / n), 4) if n else 1.0}
+    return {
+        "objects": len(ious),
+        "mask_iou_mean": round(float(np.mean(list(ious.values()))), 4) if ious else 1.0,
+        "mask_iou_min": round(ious[worst], 4) if ious else 1.0,
+        "worst_id": worst,
+        "depth_agree": round(float(close.sum() / n), 4) if n else 1.0,
+    }
 
 
 def disagreement(stats: dict[str, Any], min_iou: float, min_depth_agree: float) -> str | None:
