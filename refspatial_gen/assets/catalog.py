@@ -58,9 +58,10 @@ class Category:
 class Catalog:
     path: str
     colors: dict[str, tuple[float, float, float]]
-    materials: dict[str, dict[str, float]]
+    materials: dict[str, dict[str, float]]  # nominal parameters (the middle of each range)
     categories: dict[str, Category]
     files: tuple[str, ...] = ()  # every file read (includes first)
+    material_ranges: dict[str, dict[str, tuple[float, float]]] = field(default_factory=dict)  # per-instance draws
 
     def names(self, scale: str | None = None) -> list[str]:
         return sorted(n for n, c in self.categories.items() if scale is None or c.scale == scale)
@@ -253,22 +254,23 @@ def _parse_category(name: str, d: Any, c: _Ctx, colors: dict, materials: dict, b
                     str(d.get("label") or name), (c.file, line_of(c.lines, path)))
 
 
-def _material(name: str, v: Any, c: _Ctx) -> dict[str, float] | None:
-    """One material: known MuJoCo-style parameters, each a number in 0..1."""
+def _material(name: str, v: Any, c: _Ctx) -> dict[str, tuple[float, float]] | None:
+    """One material: known MuJoCo-style parameters, each a number in 0..1 or a range [lo, hi] that every
+    object instance draws its own value from (sources/sim/finish.py); a number is the range [x, x]."""
     if not isinstance(v, dict):
         c.err(("materials", name), f"material {name!r} must be a mapping")
         return None
-    out, ok = {}, True
+    out = {}
     for k, x in v.items():
+        rng = (x, x) if _number(x) else tuple(x) if _floats(x, 2) else None
         if k not in MATERIAL_KEYS:
             c.err(("materials", name, k), f"material {name!r}: unknown key {k!r} (known: {', '.join(sorted(MATERIAL_KEYS))})")
-            ok = False
-        elif not (_number(x) and 0 <= x <= 1):
-            c.err(("materials", name, k), f"material {name!r}: {k} must be a number in 0..1, got {x!r}")
-            ok = False
+        elif rng is None or not 0 <= rng[0] <= rng[1] <= 1:
+            c.err(("materials", name, k), f"material {name!r}: {k} must be a number in 0..1 or [lo, hi] with "
+                                          f"0 <= lo <= hi <= 1, got {x!r}")
         else:
-            out[str(k)] = float(x)
-    return out if ok else None
+            out[str(k)] = (float(rng[0]), float(rng[1]))
+    return out  # a bad value was reported; the name still counts as known (no second error)
 
 
 def _load_file(file: str, stack: tuple[str, ...], errors: list[RecipeError], acc: dict) -> None:
@@ -308,9 +310,9 @@ def _load_file(file: str, stack: tuple[str, ...], errors: list[RecipeError], acc
     for k, v in _mapping(data.get("materials"), c, ("materials",), "materials").items():
         mat = _material(str(k), v, c)
         if mat is not None:
-            acc["materials"][str(k)] = mat
+            acc["material_ranges"][str(k)] = mat
     for name, d in _mapping(data.get("categories"), c, ("categories",), "categories").items():
-        cat = _parse_category(str(name), d, c, acc["colors"], acc["materials"], set(BUILDERS))
+        cat = _parse_category(str(name), d, c, acc["colors"], acc["material_ranges"], set(BUILDERS))
         if cat is not None:
             acc["categories"][str(name)] = cat
     acc["files"].append(file)
@@ -319,14 +321,16 @@ def _load_file(file: str, stack: tuple[str, ...], errors: list[RecipeError], acc
 @lru_cache(maxsize=16)
 def _load(files: tuple[str, ...], _key: tuple) -> Catalog:
     errors: list[RecipeError] = []
-    acc: dict[str, Any] = {"colors": {}, "materials": {}, "categories": {}, "files": []}
+    acc: dict[str, Any] = {"colors": {}, "material_ranges": {}, "categories": {}, "files": []}
     for f in files:
         _load_file(f, (str(Path(f).resolve()),), errors, acc)
     if not acc["categories"] and not errors:
         errors.append(RecipeError(files[-1], 1, "catalog has no categories"))
     if errors:
         raise errors[0] if len(errors) == 1 else RecipeErrors(errors)
-    return Catalog(files[-1], acc["colors"], acc["materials"], dict(sorted(acc["categories"].items())), tuple(acc["files"]))
+    ranges = acc["material_ranges"]
+    nominal = {m: {k: round((lo + hi) / 2, 6) for k, (lo, hi) in r.items()} for m, r in ranges.items()}
+    return Catalog(files[-1], acc["colors"], nominal, dict(sorted(acc["categories"].items())), tuple(acc["files"]), ranges)
 
 
 def load_catalog(path: str | list[str] | tuple[str, ...] | None = None) -> Catalog:
