@@ -7,13 +7,15 @@ and reported as `file:line: message`.
 from __future__ import annotations
 
 import hashlib
-import importlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from refspatial_gen.core.errors import RecipeError, RecipeErrors
 from refspatial_gen.core.serialize import dumps
+from refspatial_gen.qa.config import load_qa_config
+from refspatial_gen.rewrite.config import load_rewrite_config
+from refspatial_gen.run.splits import check_splits
 from refspatial_gen.recipe_paths import Confinement, check_name, check_rewrite, check_source_config, check_templates
 from refspatial_gen.schema import Field, check_section, non_finite
 from refspatial_gen.sources import get_source, source_names
@@ -26,8 +28,9 @@ MAX_SEED = 2**64 - 1
 TOP_FIELDS: dict[str, Field] = {
     "name": Field(str, check=check_name, doc="dataset name (a folder name under out/shards)"),
     "description": Field(str, default=""),
-    "seed": Field(int, default=0, min=0, max=MAX_SEED,
-                  doc="run seed; every unit derives its generator from (seed, unit id)"),
+    "seed": Field(
+        int, default=0, min=0, max=MAX_SEED, doc="run seed; every unit derives its generator from (seed, unit id)"
+    ),
     "scenes": Field(int, default=100, min=1, max=MAX_SCENES, doc="units to generate, split across sources by weight"),
     "sources": Field(list, required=True),
     "graph": Field(dict, default=None),
@@ -40,8 +43,9 @@ TOP_FIELDS: dict[str, Field] = {
 SOURCE_FIELDS: dict[str, Field] = {
     "kind": Field(str, required=True, doc="registered source name"),
     "weight": Field(float, default=1.0, min=0.0),
-    "scenes": Field(int, default=None, min=1, max=MAX_SCENES,
-                    doc="fixed unit count for this source (overrides the weight split)"),
+    "scenes": Field(
+        int, default=None, min=1, max=MAX_SCENES, doc="fixed unit count for this source (overrides the weight split)"
+    ),
     "input": Field(str, default=None, doc="input folder (scan/image sources), relative to the recipe file"),
     "config": Field(dict, default=None),
 }
@@ -79,8 +83,16 @@ class Recipe:
     rewrite: Any = None  # compiled `rewrite:` section (refspatial_gen.rewrite.config), None when absent or off
 
 
-def _source_config(kind: str, data: Any, file: str, lines: dict, path: tuple, errors: list[RecipeError],
-                   conf: Confinement, inp: str | None) -> dict:
+def _source_config(
+    kind: str,
+    data: Any,
+    file: str,
+    lines: dict,
+    path: tuple,
+    errors: list[RecipeError],
+    conf: Confinement,
+    inp: str | None,
+) -> dict:
     """The source's validated config; its paths are confined before the source's own hook may open them."""
     src = get_source(kind)
     fields = getattr(src, "CONFIG_FIELDS", None)
@@ -120,8 +132,9 @@ def check_overrides(seed: int | None, scenes: int | None) -> None:
         raise RecipeErrors(errors)
 
 
-def _sources(top: dict, file: str, lines: dict, input_path: str | None, conf: Confinement,
-             errors: list[RecipeError]) -> list[SourceSpec]:
+def _sources(
+    top: dict, file: str, lines: dict, input_path: str | None, conf: Confinement, errors: list[RecipeError]
+) -> list[SourceSpec]:
     specs: list[SourceSpec] = []
     for i, s in enumerate(top["sources"] or []):
         sp = check_section(s, SOURCE_FIELDS, file, lines, ("sources", i), errors)
@@ -129,8 +142,13 @@ def _sources(top: dict, file: str, lines: dict, input_path: str | None, conf: Co
         if kind is None:
             continue
         if kind not in source_names():
-            errors.append(RecipeError(file, line_of(lines, ("sources", i, "kind")),
-                                      f"unknown source kind {kind!r} (known: {', '.join(source_names())})"))
+            errors.append(
+                RecipeError(
+                    file,
+                    line_of(lines, ("sources", i, "kind")),
+                    f"unknown source kind {kind!r} (known: {', '.join(source_names())})",
+                )
+            )
             continue
         inp = input_path
         if inp is None and sp["input"] is not None:
@@ -151,14 +169,18 @@ def _check_mix(top: dict, specs: list[SourceSpec], file: str, lines: dict, error
         errors.append(RecipeError(file, line_of(lines, ("sources",)), "sources must list at least one source"))
     weighted = [s for s in specs if s.scenes is None]
     if weighted and not any(s.weight > 0 for s in weighted):
-        errors.append(RecipeError(file, line_of(lines, ("sources",)),
-                                  "every source has weight 0 (give one a weight > 0 or a fixed `scenes:`)"))
+        errors.append(
+            RecipeError(
+                file,
+                line_of(lines, ("sources",)),
+                "every source has weight 0 (give one a weight > 0 or a fixed `scenes:`)",
+            )
+        )
 
 
 def _qa(top: dict, file: str, lines: dict, errors: list[RecipeError]) -> tuple[Any, list[Path]]:
-    qa_mod = importlib.import_module("refspatial_gen.qa")
     try:
-        qa_cfg = qa_mod.load_qa_config(top["qa"] or {}, file, lines)
+        qa_cfg = load_qa_config(top["qa"] or {}, file, lines)
     except RecipeError as e:
         errors.append(e)
     except RecipeErrors as e:
@@ -168,8 +190,14 @@ def _qa(top: dict, file: str, lines: dict, errors: list[RecipeError]) -> tuple[A
     return None, []
 
 
-def load_recipe(path: str | Path, *, seed: int | None = None, scenes: int | None = None,
-                input_path: str | None = None, allow_roots: tuple[str, ...] = ()) -> Recipe:
+def load_recipe(
+    path: str | Path,
+    *,
+    seed: int | None = None,
+    scenes: int | None = None,
+    input_path: str | None = None,
+    allow_roots: tuple[str, ...] = (),
+) -> Recipe:
     """Load, validate and compile a recipe. Raises RecipeErrors listing every problem found.
 
     Overrides (`seed`, `scenes`, `input_path`, as given on the command line) pass the same checks as the
@@ -191,14 +219,13 @@ def load_recipe(path: str | Path, *, seed: int | None = None, scenes: int | None
     shards = check_section(top["shards"], SHARD_FIELDS, file, lines, ("shards",), errors)
     check_templates(top["qa"], conf)
     check_rewrite(top["rewrite"], conf)
-    splits = importlib.import_module("refspatial_gen.run.splits").check_splits(top["splits"], file, lines, errors)
+    splits = check_splits(top["splits"], file, lines, errors)
     graph_cfg = dict(top["graph"] or {})
     qa_cfg, deps = _qa(top, file, lines, errors) if not errors else (None, [])
     rewrite_cfg = None
     if top["rewrite"] is not None and not errors:
         try:
-            rewrite_cfg = importlib.import_module("refspatial_gen.rewrite.config").load_rewrite_config(
-                top["rewrite"], file, lines)
+            rewrite_cfg = load_rewrite_config(top["rewrite"], file, lines)
         except RecipeError as e:
             errors.append(e)
         except RecipeErrors as e:
@@ -210,9 +237,18 @@ def load_recipe(path: str | Path, *, seed: int | None = None, scenes: int | None
     for d in sorted(set(deps)):
         h.update(d.name.encode() + b"\0" + d.read_bytes())
     return Recipe(
-        path=file, name=top["name"] or Path(file).stem, seed=top["seed"] if seed is None else seed,
-        scenes=top["scenes"] if scenes is None else scenes, sources=specs, graph=graph_cfg, qa=qa_cfg,
-        shards=shards, hash=h.hexdigest(), raw=data, splits=splits, rewrite=rewrite_cfg,
+        path=file,
+        name=top["name"] or Path(file).stem,
+        seed=top["seed"] if seed is None else seed,
+        scenes=top["scenes"] if scenes is None else scenes,
+        sources=specs,
+        graph=graph_cfg,
+        qa=qa_cfg,
+        shards=shards,
+        hash=h.hexdigest(),
+        raw=data,
+        splits=splits,
+        rewrite=rewrite_cfg,
     )
 
 
@@ -220,10 +256,17 @@ def recipe_fingerprint(recipe: Recipe) -> dict[str, Any]:
     """What identifies a run's output (stored in index.json): recipe hash, seed, scenes, code version."""
     from refspatial_gen import __version__
 
-    return {"recipe": Path(recipe.path).name, "recipe_hash": recipe.hash, "seed": recipe.seed,
-            "scenes": recipe.scenes, "code_version": __version__,
-            "sources": [{"kind": s.kind, "weight": s.weight, "input": None if s.input is None else Path(s.input).name}
-                        for s in recipe.sources]}
+    return {
+        "recipe": Path(recipe.path).name,
+        "recipe_hash": recipe.hash,
+        "seed": recipe.seed,
+        "scenes": recipe.scenes,
+        "code_version": __version__,
+        "sources": [
+            {"kind": s.kind, "weight": s.weight, "input": None if s.input is None else Path(s.input).name}
+            for s in recipe.sources
+        ],
+    }
 
 
 def fingerprint_bytes(recipe: Recipe) -> bytes:

@@ -12,7 +12,7 @@ from refspatial_gen.core.model import QAPair
 from refspatial_gen.shards import ShardWriter, write_index
 from refspatial_gen.shards.export import export
 from refspatial_gen.shards.export_refspatial import check_roborefer_layout, inverse_depth_png
-from refspatial_gen.shards.testing import make_samples
+from refspatial_gen.sources.toy_samples import make_samples
 
 
 @pytest.fixture(scope="module")

@@ -13,7 +13,7 @@ from refspatial_gen.core.model import QAPair
 from refspatial_gen.shards import ShardWriter, iter_raw, write_index
 from refspatial_gen.shards.export import EXPORTERS, export
 from refspatial_gen.shards.export_files import ExportError, sample_stem
-from refspatial_gen.shards.testing import make_samples
+from refspatial_gen.sources.toy_samples import make_samples
 
 
 def _write_dir(d, samples, image_format="png"):

@@ -15,7 +15,7 @@ import pytest
 from refspatial_gen.core.model import QAPair
 from refspatial_gen.shards import ShardWriter, iter_raw, write_index
 from refspatial_gen.shards.export import export
-from refspatial_gen.shards.testing import make_samples
+from refspatial_gen.sources.toy_samples import make_samples
 
 N = 100
 

@@ -25,7 +25,13 @@ def test_relations_cli_json_lists_the_31(capsys):
     assert d["count"] == len(rows) >= 31
     for rid in SPEC_31:
         r = rows[rid]
-        assert r["in_31"] and r["name"] and r["frame"] in ("cam", "img", "world", "obj") and r["sources"] and r["definition"]
+        assert (
+            r["in_31"]
+            and r["name"]
+            and r["frame"] in ("cam", "img", "world", "obj")
+            and r["sources"]
+            and r["definition"]
+        )
     assert {"on", "under", "next_to", "obj_left"} <= set(rows)
     assert main(["relations"]) == 0
     assert "far_from" in capsys.readouterr().out
@@ -66,22 +72,28 @@ def _spread_boxes(rng, n):
 
     # a can standing in an open container (a box), so "inside" has instances too
     x, y = rng.uniform(-0.3, 0.3), rng.uniform(-0.15, 0.15)
-    out = [("box", "white", Box3D(np.array([x, y, TABLE.top_z + 0.04]), np.array([0.18, 0.18, 0.08]), np.eye(3))),
-           ("can", "red", Box3D(np.array([x, y, TABLE.top_z + 0.08]), np.array([0.06, 0.06, 0.16]), np.eye(3)))]
+    out = [
+        ("box", "white", Box3D(np.array([x, y, TABLE.top_z + 0.04]), np.array([0.18, 0.18, 0.08]), np.eye(3))),
+        ("can", "red", Box3D(np.array([x, y, TABLE.top_z + 0.08]), np.array([0.06, 0.06, 0.16]), np.eye(3))),
+    ]
     while len(out) < n:
         cat = str(rng.choice(sorted(CATEGORIES)))
         size = np.array([rng.uniform(*r) for r in CATEGORIES[cat]])
         c = np.array([rng.uniform(-0.52, 0.52), rng.uniform(-0.32, 0.32), TABLE.top_z + size[2] / 2])
         b = Box3D(c, size, rot_z(rng.uniform(-np.pi, np.pi)))
-        if all(np.linalg.norm(b.center[:2] - o.center[:2]) > (np.linalg.norm(b.size[:2]) + np.linalg.norm(o.size[:2])) / 2 + 0.005
-               for _, _, o in out):
+        if all(
+            np.linalg.norm(b.center[:2] - o.center[:2])
+            > (np.linalg.norm(b.size[:2]) + np.linalg.norm(o.size[:2])) / 2 + 0.005
+            for _, _, o in out
+        ):
             out.append((cat, str(rng.choice(sorted(COLOURS))), b))
     return out
 
 
 def test_every_relation_is_decidable_on_typical_tabletop_scenes():
-    """Across 8 random tabletop scenes (objects anywhere on the table, corners included) every one of the 31 relations has decided instances that hold
-    (and, for comparisons, instances that do not), so the QA engine can ask about each."""
+    """Across 8 random tabletop scenes (objects anywhere on the table, corners included) every one of the 31
+    relations has decided instances that hold (and, for comparisons, instances that do not), so the QA engine
+    can ask about each."""
     true, false = Counter(), Counter()
     for seed in range(8):
         f = toy_frame(np.random.default_rng(1000 + seed), boxes=_spread_boxes(np.random.default_rng(seed), 9))

@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 import shapely
 from shapely.geometry import Polygon
+from test_graph_helpers import box, camera, scene
 
 from refspatial_gen.core.mask import normalise_point
 from refspatial_gen.core.model import FreeSpaceRegion
 from refspatial_gen.graph import build_graph
 from refspatial_gen.graph.freespace import check_free_point
 from refspatial_gen.sources.toy import toy_frame
-from test_graph_helpers import box, camera, scene
 
 
 @pytest.fixture(scope="module")
@@ -58,8 +58,11 @@ def test_planted_violations_are_caught(toy_graphs):
     probs = check_free_point(frame, graph, r, (0.001, 0.001))
     assert probs and (any("off surface" in p for p in probs) or any("does not see" in p for p in probs))
     # a different region's point is outside this region
-    other = next(x for x in graph.free_space if x.kind == "left_of" and x.anchors == r.anchors) \
-        if any(x.kind == "left_of" and x.anchors == r.anchors for x in graph.free_space) else _first(graph, "corner")
+    other = (
+        next(x for x in graph.free_space if x.kind == "left_of" and x.anchors == r.anchors)
+        if any(x.kind == "left_of" and x.anchors == r.anchors for x in graph.free_space)
+        else _first(graph, "corner")
+    )
     assert any("outside the region" in p for p in check_free_point(frame, graph, r, other.point))
 
 
@@ -85,8 +88,9 @@ def test_occluded_surface_point_is_not_visible():
     hidden = np.array([0.0, 0.05, 0.75])  # on the table, right behind the box
     uv, _ = cam.project(hidden[None])
     p = normalise_point(float(np.floor(uv[0, 0])), float(np.floor(uv[0, 1])), cam.width, cam.height)
-    fake = FreeSpaceRegion("table", "behind", (1,), [(-0.3, 0.0), (0.3, 0.0), (0.3, 0.2), (-0.3, 0.2)], 0.75, 0.1,
-                           tuple(hidden), p, "")
+    fake = FreeSpaceRegion(
+        "table", "behind", (1,), [(-0.3, 0.0), (0.3, 0.0), (0.3, 0.2), (-0.3, 0.2)], 0.75, 0.1, tuple(hidden), p, ""
+    )
     probs = check_free_point(fr, g, fake)
     assert any("not visible" in q for q in probs), probs
     for x in g.free_space:
@@ -105,5 +109,13 @@ def test_regions_respect_sector_directions():
     assert got["in_front_of"][1] < -abs(got["in_front_of"][0]) * 0.99  # towards the camera (-y)
     assert got["behind"][1] > abs(got["behind"][0]) * 0.99
     labels = {r.label for r in g.free_space if r.kind in ("corner", "edge")}
-    assert {"near-left corner", "near-right corner", "far-left corner", "far-right corner",
-            "left edge", "right edge", "near edge", "far edge"} <= labels
+    assert {
+        "near-left corner",
+        "near-right corner",
+        "far-left corner",
+        "far-right corner",
+        "left edge",
+        "right edge",
+        "near edge",
+        "far edge",
+    } <= labels

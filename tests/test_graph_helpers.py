@@ -41,7 +41,9 @@ def scene(*objects, cam: Camera | None = None, frame_id: str = "test"):
 def check(frame, geom, relation: str, args: tuple, expected):
     """Assert the relation's decision on the geometry AND through the stored graph's index."""
     f = evaluate(geom, relation, *args)
-    assert f.holds is expected, f"{relation}{args}: geometry says {f.holds} (value {f.value:.4f}, margin {f.margin:.4f})"
+    assert f.holds is expected, (
+        f"{relation}{args}: geometry says {f.holds} (value {f.value:.4f}, margin {f.margin:.4f})"
+    )
     idx = GraphIndex(build_graph(frame, {"free_space": relation == "free_space"}), frame)
     g = idx.fact(relation, *args)
     assert g is not None and g.holds is expected, f"{relation}{args}: index says {None if g is None else g.holds}"

@@ -6,12 +6,12 @@ from __future__ import annotations
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from test_graph_helpers import box, scene
 
 from refspatial_gen.core.mask import denormalise_point
 from refspatial_gen.graph import build_graph
 from refspatial_gen.graph.resolve import resolve_phrase, resolver
 from refspatial_gen.sources.toy import toy_frame
-from test_graph_helpers import box, scene
 
 
 @settings(max_examples=25, deadline=None)
@@ -35,7 +35,11 @@ def test_every_phrase_resolves_to_exactly_its_object(seed, n):
 
 def test_resolver_reports_ambiguity():
     # two red boxes side by side (same size), a blue can: "the box" and "the red box" are ambiguous
-    fr, _ = scene(("box", "red", box(-0.2, 0.0)), ("box", "red", box(0.2, 0.0)), ("can", "blue", box(0.0, 0.2, (0.06, 0.06, 0.12))))
+    fr, _ = scene(
+        ("box", "red", box(-0.2, 0.0)),
+        ("box", "red", box(0.2, 0.0)),
+        ("can", "blue", box(0.0, 0.2, (0.06, 0.06, 0.12))),
+    )
     assert resolve_phrase("the box", fr) == [1, 2]
     assert resolve_phrase("the red box", fr) == [1, 2]
     assert resolve_phrase("the leftmost box", fr) == [1]
@@ -54,8 +58,12 @@ def test_resolver_reports_ambiguity():
 
 
 def test_superlatives_ordinals_and_anchor_phrases():
-    fr, _ = scene(("can", "red", box(-0.3, 0.0, (0.06, 0.06, 0.20))), ("can", "red", box(-0.1, 0.0, (0.06, 0.06, 0.10))),
-                  ("can", "red", box(0.1, 0.0, (0.06, 0.06, 0.13))), ("tray", "blue", box(0.3, 0.0, (0.20, 0.15, 0.02))))
+    fr, _ = scene(
+        ("can", "red", box(-0.3, 0.0, (0.06, 0.06, 0.20))),
+        ("can", "red", box(-0.1, 0.0, (0.06, 0.06, 0.10))),
+        ("can", "red", box(0.1, 0.0, (0.06, 0.06, 0.13))),
+        ("tray", "blue", box(0.3, 0.0, (0.20, 0.15, 0.02))),
+    )
     g = build_graph(fr, {"free_space": False})
     ph = {n.object_id: n.phrases for n in g.nodes}
     assert "the tallest can" in ph[1] and "the shortest can" in ph[2]
@@ -67,8 +75,11 @@ def test_superlatives_ordinals_and_anchor_phrases():
 
 
 def test_stacked_object_gets_an_on_phrase():
-    fr, _ = scene(("block", "red", box(0.0, 0.0, (0.05, 0.05, 0.05), z0=0.75 + 0.02)), ("tray", "blue", box(0.0, 0.0, (0.20, 0.15, 0.02))),
-                  ("block", "red", box(0.3, 0.0, (0.05, 0.05, 0.05))))
+    fr, _ = scene(
+        ("block", "red", box(0.0, 0.0, (0.05, 0.05, 0.05), z0=0.75 + 0.02)),
+        ("tray", "blue", box(0.0, 0.0, (0.20, 0.15, 0.02))),
+        ("block", "red", box(0.3, 0.0, (0.05, 0.05, 0.05))),
+    )
     g = build_graph(fr, {"free_space": False})
     assert "the block on the tray" in g.node(1).phrases
     assert resolve_phrase("the block on the tray", fr) == [1]
@@ -80,7 +91,11 @@ def test_stacked_object_gets_an_on_phrase():
 def test_hidden_object_gets_no_phrase_but_still_counts():
     from refspatial_gen.core.mask import RLE
 
-    fr, _ = scene(("box", "red", box(-0.2, 0.0)), ("box", "blue", box(0.2, 0.0)), ("can", "green", box(0.0, 0.2, (0.06, 0.06, 0.12))))
+    fr, _ = scene(
+        ("box", "red", box(-0.2, 0.0)),
+        ("box", "blue", box(0.2, 0.0)),
+        ("can", "green", box(0.0, 0.2, (0.06, 0.06, 0.12))),
+    )
     fr.objects[1].mask = RLE.encode(np.zeros((fr.camera.height, fr.camera.width), bool))  # box 2 not visible
     g = build_graph(fr, {"free_space": False})
     assert g.node(2).point is None and g.node(2).phrases == []

@@ -30,8 +30,16 @@ def _objects(boxes, cats, masks, bboxes=None) -> list[ObjectInstance]:
         if m.sum() < MIN_MASK_PX:
             continue
         ys, xs = np.nonzero(m)
-        out.append(ObjectInstance(k + 1, c, b, RLE.encode(m), (float(xs.min()), float(ys.min()), float(xs.max() + 1), float(ys.max() + 1)),
-                                  provenance={"source": "test-reader", "index": k}))
+        out.append(
+            ObjectInstance(
+                k + 1,
+                c,
+                b,
+                RLE.encode(m),
+                (float(xs.min()), float(ys.min()), float(xs.max() + 1), float(ys.max() + 1)),
+                provenance={"source": "test-reader", "index": k},
+            )
+        )
     return out
 
 
@@ -68,9 +76,9 @@ def _read_ply_xyz(path: Path) -> np.ndarray:
     raw = path.read_bytes()
     end = raw.index(b"end_header\n") + len(b"end_header\n")
     header = raw[:end].decode("ascii")
-    n = int(next(l.split()[-1] for l in header.splitlines() if l.startswith("element vertex")))
+    n = int(next(ln.split()[-1] for ln in header.splitlines() if ln.startswith("element vertex")))
     dt = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("r", "u1"), ("g", "u1"), ("b", "u1")])
-    v = np.frombuffer(raw[end:end + n * dt.itemsize], dtype=dt)
+    v = np.frombuffer(raw[end : end + n * dt.itemsize], dtype=dt)
     return np.stack([v["x"], v["y"], v["z"]], axis=1).astype(np.float64)
 
 
@@ -87,8 +95,16 @@ def scannet_frame(root: Path, index: int, scale: float = 0.25) -> Frame:
     rgb = cv2.resize(full, (W, H), interpolation=cv2.INTER_AREA)
     K = np.array(s["K_color"])
     sx, sy = W / full.shape[1], H / full.shape[0]
-    cam = Camera(W, H, K[0, 0] * sx, K[1, 1] * sy, (K[0, 2] + 0.5) * sx - 0.5, (K[1, 2] + 0.5) * sy - 0.5,
-                 np.array(fr["cam_to_world"]), gravity_known=True)
+    cam = Camera(
+        W,
+        H,
+        K[0, 0] * sx,
+        K[1, 1] * sy,
+        (K[0, 2] + 0.5) * sx - 0.5,
+        (K[1, 2] + 0.5) * sy - 0.5,
+        np.array(fr["cam_to_world"]),
+        gravity_known=True,
+    )
     boxes = [Box3D.from_yaw(o["raw_box"]["center"], o["raw_box"]["size"], o["raw_box"]["yaw"]) for o in s["objects"]]
     # depth of the scan's surfaces: splat the point cloud (nearest point per 3x3 block wins)
     pts = _read_ply_xyz(d / "points_raw.ply")
@@ -111,8 +127,16 @@ def scannet_frame(root: Path, index: int, scale: float = 0.25) -> Frame:
         masks.append(m)
     depth = np.where(pc > 0, pc, np.where(idx >= 0, bdepth, 0)).astype(np.float32)
     objs = _objects(boxes, [o["category"] for o in s["objects"]], masks)
-    return Frame(f"scannet/scene0000_00/{index}", np.ascontiguousarray(rgb), depth, cam, objs, [], source="scan",
-                 scene_id="scannet/scene0000_00")
+    return Frame(
+        f"scannet/scene0000_00/{index}",
+        np.ascontiguousarray(rgb),
+        depth,
+        cam,
+        objs,
+        [],
+        source="scan",
+        scene_id="scannet/scene0000_00",
+    )
 
 
 def _check_graph(frame):
@@ -122,8 +146,10 @@ def _check_graph(frame):
     res = resolver(frame)
     masks = {o.id: o.mask.decode() for o in frame.objects}
     for n in g.nodes:
-        x, y = (min(frame.camera.width - 1, int(n.point[0] * frame.camera.width)),
-                min(frame.camera.height - 1, int(n.point[1] * frame.camera.height)))
+        x, y = (
+            min(frame.camera.width - 1, int(n.point[0] * frame.camera.width)),
+            min(frame.camera.height - 1, int(n.point[1] * frame.camera.height)),
+        )
         assert masks[n.object_id][y, x]
         for p in n.phrases:
             assert res(p) == [n.object_id], p
@@ -184,7 +210,10 @@ def test_gravity_fitted_from_the_floor_when_unknown(shared_data):
     frame.camera.world_from_cam = np.eye(4)  # world = camera frame: no gravity information left
     frame.camera.gravity_known = False
     for o in frame.objects:  # boxes expressed in that (camera) world
-        R = np.array(json.loads((shared_data / "sunrgbd" / "000001" / "annotation.json").read_text())["Rtilt"]) @ F_SUN.T
+        R = (
+            np.array(json.loads((shared_data / "sunrgbd" / "000001" / "annotation.json").read_text())["Rtilt"])
+            @ F_SUN.T
+        )
         o.box = Box3D(R.T @ o.box.center, o.box.size, R.T @ o.box.rotation)
     g = build_graph(frame)
     assert g.meta["gravity"]["method"] == "fitted_plane" and g.meta["world_relations"]

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_graph_helpers import TOP, box, camera, check, scene
 
 from refspatial_gen.graph.relations import REGISTRY, SPEC_31, evaluate
-from test_graph_helpers import TOP, box, camera, check, scene
 
 B = "box"
 
@@ -49,23 +49,28 @@ def test_above_below_world():
     check(fr, g, "below_world", (2, 1), True)
     check(fr, g, "above_world", (2, 1), False)
     # side by side, centre heights 1 cm apart (margin 3 cm): undecided
-    fr, g = scene(("box", "red", box(-0.15, 0.0, (0.08, 0.08, 0.10))), ("box", "blue", box(0.15, 0.0, (0.08, 0.08, 0.08))))
+    fr, g = scene(
+        ("box", "red", box(-0.15, 0.0, (0.08, 0.08, 0.10))), ("box", "blue", box(0.15, 0.0, (0.08, 0.08, 0.08)))
+    )
     check(fr, g, "above_world", (1, 2), None)
     check(fr, g, "below_world", (1, 2), None)
 
 
 # ------------------------------------------------------------------ sizes
-@pytest.mark.parametrize("rel, mirror, size_a, size_b, expected", [
-    ("tall", "short", (0.08, 0.08, 0.20), (0.08, 0.08, 0.10), True),
-    ("tall", "short", (0.08, 0.08, 0.10), (0.08, 0.08, 0.20), False),
-    ("tall", "short", (0.08, 0.08, 0.100), (0.08, 0.08, 0.105), None),
-    ("big", "small", (0.16, 0.16, 0.16), (0.08, 0.08, 0.08), True),
-    ("big", "small", (0.08, 0.08, 0.08), (0.16, 0.16, 0.16), False),
-    ("big", "small", (0.10, 0.10, 0.10), (0.10, 0.10, 0.11), None),
-    ("wide", "thin", (0.20, 0.06, 0.05), (0.10, 0.06, 0.05), True),
-    ("wide", "thin", (0.10, 0.06, 0.05), (0.20, 0.06, 0.05), False),
-    ("wide", "thin", (0.100, 0.06, 0.05), (0.105, 0.06, 0.05), None),
-])
+@pytest.mark.parametrize(
+    "rel, mirror, size_a, size_b, expected",
+    [
+        ("tall", "short", (0.08, 0.08, 0.20), (0.08, 0.08, 0.10), True),
+        ("tall", "short", (0.08, 0.08, 0.10), (0.08, 0.08, 0.20), False),
+        ("tall", "short", (0.08, 0.08, 0.100), (0.08, 0.08, 0.105), None),
+        ("big", "small", (0.16, 0.16, 0.16), (0.08, 0.08, 0.08), True),
+        ("big", "small", (0.08, 0.08, 0.08), (0.16, 0.16, 0.16), False),
+        ("big", "small", (0.10, 0.10, 0.10), (0.10, 0.10, 0.11), None),
+        ("wide", "thin", (0.20, 0.06, 0.05), (0.10, 0.06, 0.05), True),
+        ("wide", "thin", (0.10, 0.06, 0.05), (0.20, 0.06, 0.05), False),
+        ("wide", "thin", (0.100, 0.06, 0.05), (0.105, 0.06, 0.05), None),
+    ],
+)
 def test_sizes(rel, mirror, size_a, size_b, expected):
     fr, g = scene(("box", "red", box(-0.2, 0.0, size_a)), ("box", "blue", box(0.2, 0.0, size_b)))
     check(fr, g, rel, (1, 2), expected)
@@ -113,7 +118,9 @@ def test_distance_is_the_gap_between_surfaces():
 @pytest.mark.parametrize("xa, xb, close", [(0.15, -0.35, True), (0.35, -0.15, False), (0.15, -0.16, None)])
 def test_close_far(xa, xb, close):
     # anchor C (a can) at the origin; A and B are equal boxes on either side of it
-    fr, g = scene(("box", "red", box(xa, 0.0)), ("box", "blue", box(xb, 0.0)), ("can", "green", box(0.0, 0.0, (0.06, 0.06, 0.12))))
+    fr, g = scene(
+        ("box", "red", box(xa, 0.0)), ("box", "blue", box(xb, 0.0)), ("can", "green", box(0.0, 0.0, (0.06, 0.06, 0.12)))
+    )
     check(fr, g, "close", (1, 2, 3), close)
     check(fr, g, "far", (2, 1, 3), close)
 
@@ -141,7 +148,11 @@ def test_rotation_horizontal():
 def test_rotation_vertical():
     level = camera(eye=(0.0, -1.5, 1.0), target=(0.0, 0.0, 1.0))
     # a short box on the table: below eye level -> pitch down; a box whose centre is at eye height: undecided
-    fr, g = scene(("box", "red", box(-0.2, 0.0, (0.08, 0.08, 0.10))), ("box", "blue", box(0.2, 0.0, (0.08, 0.08, 0.50))), cam=level)
+    fr, g = scene(
+        ("box", "red", box(-0.2, 0.0, (0.08, 0.08, 0.10))),
+        ("box", "blue", box(0.2, 0.0, (0.08, 0.08, 0.50))),
+        cam=level,
+    )
     f = check(fr, g, "rotation_vertical", (1,), True)
     assert abs(f.value - np.arctan2(TOP + 0.05 - 1.0, 1.5)) < 1e-6 and f.value < 0
     check(fr, g, "rotation_vertical", (2,), None)
@@ -149,20 +160,28 @@ def test_rotation_vertical():
 
 @pytest.mark.parametrize("a_xy, expected", [((0.0, 0.0), True), ((0.45, 0.0), False), ((0.0, 0.25), None)])
 def test_between(a_xy, expected):
-    fr, g = scene(("can", "red", box(*a_xy, (0.06, 0.06, 0.12))), ("box", "blue", box(-0.3, 0.0)), ("box", "green", box(0.3, 0.0)))
+    fr, g = scene(
+        ("can", "red", box(*a_xy, (0.06, 0.06, 0.12))), ("box", "blue", box(-0.3, 0.0)), ("box", "green", box(0.3, 0.0))
+    )
     check(fr, g, "between", (1, 2, 3), expected)
     check(fr, g, "between", (1, 3, 2), expected)
 
 
 def test_between_undecided_when_another_of_the_category_is_between():
-    fr, g = scene(("can", "red", box(-0.05, 0.0, (0.06, 0.06, 0.12))), ("box", "blue", box(-0.3, 0.0)),
-                  ("box", "green", box(0.3, 0.0)), ("can", "yellow", box(0.08, 0.0, (0.06, 0.06, 0.12))))
+    fr, g = scene(
+        ("can", "red", box(-0.05, 0.0, (0.06, 0.06, 0.12))),
+        ("box", "blue", box(-0.3, 0.0)),
+        ("box", "green", box(0.3, 0.0)),
+        ("can", "yellow", box(0.08, 0.0, (0.06, 0.06, 0.12))),
+    )
     check(fr, g, "between", (1, 2, 3), None)
 
 
 def test_inside_outside():
     bin_ = box(0.0, 0.0, (0.20, 0.20, 0.10))
-    fr, g = scene(("can", "red", box(0.0, 0.0, (0.06, 0.06, 0.20))), ("box", "blue", bin_), ("block", "green", box(0.3, 0.0)))
+    fr, g = scene(
+        ("can", "red", box(0.0, 0.0, (0.06, 0.06, 0.20))), ("box", "blue", bin_), ("block", "green", box(0.3, 0.0))
+    )
     check(fr, g, "inside", (1, 2), True)  # half of the can's height is inside the box
     check(fr, g, "outside", (1, 2), False)
     check(fr, g, "inside", (3, 2), False)
@@ -172,7 +191,10 @@ def test_inside_outside():
     check(fr, g, "outside", (1, 2), None)
 
 
-@pytest.mark.parametrize("b_xy, facing", [((0.2, 0.0), True), ((-0.5, 0.0), False), ((-0.2 + 0.4 * np.cos(np.pi / 6), 0.4 * np.sin(np.pi / 6)), None)])
+@pytest.mark.parametrize(
+    "b_xy, facing",
+    [((0.2, 0.0), True), ((-0.5, 0.0), False), ((-0.2 + 0.4 * np.cos(np.pi / 6), 0.4 * np.sin(np.pi / 6)), None)],
+)
 def test_facing(b_xy, facing):
     # toy objects face along their box x axis; A at (-0.2, 0) faces +x
     fr, g = scene(("box", "red", box(-0.2, 0.0)), ("can", "blue", box(*b_xy, (0.06, 0.06, 0.12))))
@@ -230,8 +252,11 @@ def test_free_space_holds_fails_and_is_withheld_when_too_small():
 
 def test_on_supported_by_under():
     base = box(0.0, 0.0, (0.16, 0.16, 0.06))
-    fr, g = scene(("box", "red", box(0.0, 0.0, (0.08, 0.08, 0.05), z0=TOP + 0.06)), ("tray", "blue", base),
-                  ("block", "green", box(0.3, 0.0, (0.05, 0.05, 0.05))))
+    fr, g = scene(
+        ("box", "red", box(0.0, 0.0, (0.08, 0.08, 0.05), z0=TOP + 0.06)),
+        ("tray", "blue", base),
+        ("block", "green", box(0.3, 0.0, (0.05, 0.05, 0.05))),
+    )
     check(fr, g, "on", (1, 2), True)
     check(fr, g, "supported_by", (1, 2), True)
     check(fr, g, "on", (2, "table"), True)
@@ -240,17 +265,24 @@ def test_on_supported_by_under():
     check(fr, g, "under", (2, 1), True)
     check(fr, g, "under", (3, 1), False)
     # a box hovering over a third of another's footprint... 20% overlap: undecided
-    fr, g = scene(("block", "green", box(0.0, 0.0, (0.10, 0.10, 0.05))),
-                  ("box", "red", box(0.08, 0.0, (0.10, 0.10, 0.04), z0=TOP + 0.10)))
+    fr, g = scene(
+        ("block", "green", box(0.0, 0.0, (0.10, 0.10, 0.05))),
+        ("box", "red", box(0.08, 0.0, (0.10, 0.10, 0.04), z0=TOP + 0.10)),
+    )
     check(fr, g, "under", (1, 2), None)
 
 
-@pytest.mark.parametrize("a_xy, rel", [((0.0, 0.3), "obj_left"), ((0.3, 0.0), "obj_front"), ((-0.3, 0.0), "obj_behind"), ((0.0, -0.3), "obj_right")])
+@pytest.mark.parametrize(
+    "a_xy, rel",
+    [((0.0, 0.3), "obj_left"), ((0.3, 0.0), "obj_front"), ((-0.3, 0.0), "obj_behind"), ((0.0, -0.3), "obj_right")],
+)
 def test_object_frame_directions(a_xy, rel):
     # B at the origin faces +x (toy fronts are the box x axis); its left is +y
     fr, g = scene(("can", "red", box(*a_xy, (0.06, 0.06, 0.12))), ("box", "blue", box(0.0, 0.0)))
     check(fr, g, rel, (1, 2), True)
-    other = {"obj_left": "obj_right", "obj_right": "obj_left", "obj_front": "obj_behind", "obj_behind": "obj_front"}[rel]
+    other = {"obj_left": "obj_right", "obj_right": "obj_left", "obj_front": "obj_behind", "obj_behind": "obj_front"}[
+        rel
+    ]
     check(fr, g, other, (1, 2), False)
 
 
@@ -266,8 +298,9 @@ def test_registry_covers_the_31_with_metadata():
         r = REGISTRY[rid]
         assert r.frame in ("cam", "img", "world", "obj") and r.arity in (1, 2, 3)
         assert r.definition and r.value and r.margin and r.sources and r.evaluate is not None
-    from refspatial_gen.graph.constants import Thresholds
     import dataclasses
+
+    from refspatial_gen.graph.constants import Thresholds
 
     names = {f.name for f in dataclasses.fields(Thresholds)}
     for r in REGISTRY.values():

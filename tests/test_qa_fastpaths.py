@@ -1,5 +1,5 @@
-"""The QA index's fast paths (grouped `between` rows, direct `between` codes, size matrices, the
-executor's set-at-once `between`) must give exactly what the general GraphIndex.fact path gives."""
+"""The QA engine's fast paths (set-at-once relation and `between` entries, the close/far winner from
+distances, compiled steps, skipped replays and searches) must give exactly what the member-wise path gives."""
 
 from __future__ import annotations
 
@@ -22,28 +22,14 @@ def scenes():
     f, g = out[0]
     g2 = SceneGraph.from_json(g.to_json())
     a, b, c, d, e = sorted(n.object_id for n in g2.nodes)[:5]
-    g2.facts += [RelationFact("inside", (a, b), True, 0.9, 0.1), RelationFact("inside", (c, d), None, 0.3, 0.1),
-                 RelationFact("touching", (b, a), True, 0.0, 0.01), RelationFact("touching", (d, e), None, 0.01, 0.01)]
+    g2.facts += [
+        RelationFact("inside", (a, b), True, 0.9, 0.1),
+        RelationFact("inside", (c, d), None, 0.3, 0.1),
+        RelationFact("touching", (b, a), True, 0.0, 0.01),
+        RelationFact("touching", (d, e), None, 0.01, 0.01),
+    ]
     out.append((f, g2))
     return out
-
-
-def test_between_rows_and_codes_match_general_path(scenes):
-    seen_true = seen_undecided = 0
-    for f, g in scenes:
-        gi = GraphIndex(g, f)
-        ref = GraphIndex(g, f)  # untouched instance: only the general path
-        rows = gi.between_rows()
-        for a, b, c in permutations(gi.ids, 3):
-            want = ref.fact("between", a, b, c)
-            h, t = gi.between_code(a, b, c)
-            assert (h, t) == (want.holds, want.value)
-            t_set, u_set = rows.get((min(b, c), max(b, c)), (frozenset(), frozenset()))
-            got = True if a in t_set else (None if a in u_set else False)
-            assert got == want.holds
-            seen_true += want.holds is True
-            seen_undecided += want.holds is None
-    assert seen_true > 0  # the scenes exercise the relation
 
 
 def test_scene_index_between_set_matches_memberwise(scenes):
@@ -60,25 +46,29 @@ def test_scene_index_between_set_matches_memberwise(scenes):
                 assert idx.between(b, c, s) == frozenset(x for x, fa in zip(members, facts) if fa.holds)
 
 
-def test_scene_index_facts_match_graph_index(scenes):
-    rels = ("left", "right", "front", "behind", "tall", "short", "big", "small", "wide", "thin", "between",
-            "close", "far", "touching", "inside", "outside")
-    for f, g in scenes:
-        idx, ref = SceneIndex(f, g), GraphIndex(g, f)
-        for rel in rels:
-            n = 3 if rel in ("between", "close", "far") else 2
-            for args in permutations(idx.ids, n):
-                want = ref.fact(rel, *args)
-                got = idx.fact(rel, args)
-                if want is None:
-                    assert got is None
-                else:
-                    assert (got.holds, got.value) == (want.holds, float(want.value)), (rel, args)
-
-
-RELATE_RELATIONS = ("left", "right", "front", "behind", "above_image", "below_image", "above_world", "below_world",
-                    "tall", "short", "big", "small", "wide", "thin", "far_from", "facing", "facing_away", "outside",
-                    "inside", "touching", "next_to")
+RELATE_RELATIONS = (
+    "left",
+    "right",
+    "front",
+    "behind",
+    "above_image",
+    "below_image",
+    "above_world",
+    "below_world",
+    "tall",
+    "short",
+    "big",
+    "small",
+    "wide",
+    "thin",
+    "far_from",
+    "facing",
+    "facing_away",
+    "outside",
+    "inside",
+    "touching",
+    "next_to",
+)
 
 
 def test_relation_tables_match_memberwise_facts(scenes):
@@ -110,7 +100,6 @@ def test_compiled_steps_agree_with_run_step(scenes):
     from itertools import product
 
     from refspatial_gen.qa.bench import default_config
-    from refspatial_gen.qa.compiled import compiled
     from refspatial_gen.qa.executor import Context, run_step, slot_candidates
 
     cfg = default_config()
@@ -119,15 +108,19 @@ def test_compiled_steps_agree_with_run_step(scenes):
         idx = SceneIndex(f, g)
         for fam in cfg.families:
             for t in fam.templates:
-                fns = compiled(t)
+                fns = t.program.fns
                 for st, fn in zip(t.steps, fns):
-                    if st.op not in ("relate", "between") or fn.__qualname__.startswith("_generic"):
+                    if st.op not in ("relate", "between") or st.impl.compile(st) is None:
                         continue
                     names = [n for n in t.slots if t.slots[n].type in ("relation", "object", "anchor")]
                     used = {r.value for r in st.args.values() if r.kind == "slot"} | {
-                        x.value for r in st.args.values() if r.kind == "list" for x in r.value}
-                    cands = [slot_candidates(t, n, {}, Context(idx, np.random.default_rng(0)))[:6]
-                             for n in names if n in used]
+                        x.value for r in st.args.values() if r.kind == "list" for x in r.value
+                    }
+                    cands = [
+                        slot_candidates(t, n, {}, Context(idx, np.random.default_rng(0)))[:6]
+                        for n in names
+                        if n in used
+                    ]
                     for prev in (None, idx.all, frozenset(list(idx.ids)[:4])):
                         for combo in product(*cands):
                             env = dict(zip([n for n in names if n in used], combo))
@@ -146,34 +139,12 @@ def test_compiled_steps_agree_with_run_step(scenes):
     assert checked > 1000
 
 
-def test_spot_facts_match_graph_index(scenes):
-    """corner/edge lookups (the `at` op: fact() and the Fact-free decision()) give what GraphIndex.fact gives,
-    for every object and labelled spot."""
-    seen = {True: 0, None: 0, False: 0, "absent": 0}
-    for f, g in scenes:
-        idx, ref = SceneIndex(f, g), GraphIndex(g, f)
-        for kind, sid, label in idx.spots + (("corner", "table", "no-such-label"), ("edge", "nowhere", "left")):
-            for a in idx.ids + (10_000,):
-                want = ref.fact(kind, a, sid, label)
-                got = idx.fact(kind, (a, sid, label))
-                from refspatial_gen.qa.index import NO_FACT
-
-                assert idx.decision(kind, (a, sid, label)) is (NO_FACT if want is None else want.holds)
-                if want is None:
-                    assert got is None
-                    seen["absent"] += 1
-                else:
-                    assert (got.holds, got.value) == (want.holds, float(want.value)), (kind, a, sid, label)
-                    seen[want.holds] += 1
-    assert seen[False] and seen["absent"] and (seen[True] or seen[None])
-
-
 def test_close_far_winner_matches_pairwise_rule(scenes, monkeypatch):
     """Superlatives on close/far decide from the distances to the anchor; the pairwise elimination (facts one
     pair at a time) gives the same winner, or rejects too, for every anchor and candidate set tried."""
     from itertools import combinations
 
-    from refspatial_gen.qa.executor import _winner
+    from refspatial_gen.qa.ops.common import winner as _winner
 
     outcomes = {"winner": 0, "reject": 0}
     for f, g in scenes:
@@ -198,17 +169,6 @@ def test_close_far_winner_matches_pairwise_rule(scenes, monkeypatch):
     assert outcomes["winner"] > 100 and outcomes["reject"] > 10
 
 
-def test_distance_matrix_matches_pairwise_lookup(scenes):
-    """The one-pass stored-distance matrix equals the pair-by-pair lookup (either storage direction)."""
-    for f, g in scenes:
-        gi = GraphIndex(g, f)
-        d = gi._distance_matrix()
-        for i, a in enumerate(gi.ids):
-            for j, b in enumerate(gi.ids):
-                want = 0.0 if a == b else gi._distance(a, b)
-                assert d[i, j] == (np.inf if want is None else want)
-
-
 def test_point_in_mask_matches_decoded_mask(scenes):
     """The RLE point test (bisect over run ends) agrees with the decoded mask on a grid of points."""
     from refspatial_gen.core.mask import normalise_point
@@ -228,12 +188,11 @@ def test_point_in_mask_matches_decoded_mask(scenes):
 
 def _degenerate_by_full_replay(t, env, ctx) -> list[int]:
     """degenerate_steps without its shortcuts: every droppable step is replayed, the whole program each time."""
-    from refspatial_gen.qa import ops
     from refspatial_gen.qa.executor import answer_key, replay
 
     full, bad = answer_key(env[t.steps[-1].name]), []
     for st in t.steps:
-        if st.op in ops.DROPPABLE:
+        if st.impl.droppable:
             try:
                 if replay(t, env, ctx, drop=st.index, reuse_prefix=False) == full:
                     bad.append(st.index)
@@ -244,9 +203,11 @@ def _degenerate_by_full_replay(t, env, ctx) -> list[int]:
 
 def test_replay_with_compiled_steps_matches_interpreter(scenes, monkeypatch):
     """The degeneracy check replays programs with the compiled steps; the interpreter gives the same verdicts."""
-    import refspatial_gen.qa.compiled as compiled_mod
+    import dataclasses
+
     from refspatial_gen.qa.bench import default_config
     from refspatial_gen.qa.executor import Context, Search, degenerate_steps
+    from refspatial_gen.qa.ops.common import generic
 
     cfg = default_config()
     checked = bad = 0
@@ -259,9 +220,10 @@ def test_replay_with_compiled_steps_matches_interpreter(scenes, monkeypatch):
                 ctx = Context(idx, np.random.default_rng(1))
                 for env in list(Search(t, ctx, 300).instances())[:15]:
                     fast = degenerate_steps(t, env, ctx)
-                    with monkeypatch.context() as mp:
-                        mp.setattr(compiled_mod, "compiled", lambda t: [compiled_mod._generic(st) for st in t.steps])
-                        slow = degenerate_steps(t, env, ctx)
+                    interpreted = dataclasses.replace(
+                        t, program=dataclasses.replace(t.program, fns=tuple(generic(st) for st in t.steps))
+                    )
+                    slow = degenerate_steps(interpreted, env, ctx)
                     assert fast == slow, (t.name, env)
                     assert fast == _degenerate_by_full_replay(t, env, ctx), (t.name, env)  # the skipped replays
                     checked += 1
@@ -290,7 +252,6 @@ def test_compiled_steps_agree_on_search_instances(scenes):
     """Every compiled step (relate, between, filter, locate, compare) returns what run_step returns or rejects
     with, on the bindings the search really reaches, fed the previous step's value and other inputs."""
     from refspatial_gen.qa.bench import default_config
-    from refspatial_gen.qa.compiled import compiled
     from refspatial_gen.qa.executor import Context, Search, run_step
 
     cfg = default_config()
@@ -302,10 +263,10 @@ def test_compiled_steps_agree_on_search_instances(scenes):
             for t in fam.templates:
                 if any(st.op == "camera_turn" for st in t.steps):
                     continue
-                fns = compiled(t)
+                fns = t.program.fns
                 for env in list(Search(t, Context(idx, np.random.default_rng(3)), 400).instances())[:10]:
                     for k, (st, fn) in enumerate(zip(t.steps, fns)):
-                        if fn.__qualname__.startswith("_generic"):
+                        if st.impl.compile(st) is None:
                             continue
                         own = env[t.steps[k - 1].name] if k else None
                         for prev in (own, None, idx.all, *singles, frozenset()):
@@ -359,10 +320,9 @@ def test_between_shortcut_only_skips_searches_that_cannot_succeed(scenes):
     it: largest_between_row is the largest true row, and with it below the bound the search finds nothing."""
     from refspatial_gen.qa.bench import default_config
     from refspatial_gen.qa.executor import Context, Search
-    from refspatial_gen.qa.generate import _needs
 
     cfg = default_config()
-    templates = [t for fam in cfg.families for t in fam.templates if _needs(t).between]
+    templates = [t for fam in cfg.families for t in fam.templates if t.program.needs.between]
     skipped = searched = 0
     small = toy_scenes((104, 105, 106), 5)  # five-object scenes: some have at most one object between any two
     for f, g in [*scenes, *small]:
@@ -370,8 +330,8 @@ def test_between_shortcut_only_skips_searches_that_cannot_succeed(scenes):
         rows = [idx.between_entry(b, c)[0] for b, c in permutations(idx.ids, 2)]
         assert idx.largest_between_row == max(len(r) for r in rows)
         for t in templates:
-            if idx.largest_between_row < _needs(t).between:
-                assert not list(Search(t, Context(idx, np.random.default_rng(0)), 10 ** 6).instances()), t.name
+            if idx.largest_between_row < t.program.needs.between:
+                assert not list(Search(t, Context(idx, np.random.default_rng(0)), 10**6).instances()), t.name
                 skipped += 1
             else:
                 searched += 1

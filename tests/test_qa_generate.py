@@ -24,7 +24,9 @@ from refspatial_gen.sources.toy import TABLE, toy_frame
 
 POINTS = re.compile(r"^\[\(\d\.\d{3}, \d\.\d{3}\)\]$")
 CHOICE = re.compile(r"^\([A-H]\)( .+)?$")
-TRACE = re.compile(r"^<think>(\[(Position|Orientation|Size)\] \[[^\]]+\]: \([-0-9., ]+\)\n?)+</think><answer>.+</answer>$")
+TRACE = re.compile(
+    r"^<think>(\[(Position|Orientation|Size)\] \[[^\]]+\]: \([-0-9., ]+\)\n?)+</think><answer>.+</answer>$"
+)
 
 
 @pytest.fixture(scope="module")
@@ -48,7 +50,7 @@ def generated(scenes, cfg):
 
 def test_every_qa_pair_is_well_formed(generated):
     fams = Counter()
-    for f, g, qas in generated:
+    for f, _g, qas in generated:
         assert 5 <= len(qas) <= 15
         assert len({q.qa_id for q in qas}) == len(qas)
         assert len({q.question for q in qas}) == len(qas)
@@ -78,11 +80,11 @@ def test_every_qa_pair_is_well_formed(generated):
 
 def test_point_answers_lie_in_the_target_mask(generated):
     n = 0
-    for f, g, qas in generated:
+    for f, _g, qas in generated:
         for q in qas:
             if q.answer_struct["kind"] != "points":
                 continue
-            (x, y), = q.answer_struct["points"]
+            ((x, y),) = q.answer_struct["points"]
             px, py = denormalise_point(x, y, 320, 240)
             assert f.object(q.targets[0]).mask.decode()[py, px]
             n += 1
@@ -129,7 +131,9 @@ def test_degenerate_step_is_detected(scenes):
     t = _one_template("""
 templates:
   - name: t
-    slots: {cat: category, r1: {type: relation, choices: [left]}, a1: anchor, r2: {type: relation, choices: [right]}, a2: anchor}
+    slots:
+      {cat: category, r1: {type: relation, choices: [left]}, a1: anchor, r2: {type: relation, choices: [right]},
+       a2: anchor}
     program:
       - {op: filter, category: cat}
       - {op: relate, relation: r1, anchor: a1}
@@ -157,8 +161,17 @@ templates:
                         found = (cat, x, a1, a2, s1)
     assert found, "no scene configuration with a redundant relation"
     cat, x, a1, a2, s1 = found
-    env = {"cat": cat, "r1": "left", "a1": a1, "r2": "right", "a2": a2,
-           "step1": idx.by_category[cat], "step2": s1, "step3": s1, "step4": None}
+    env = {
+        "cat": cat,
+        "r1": "left",
+        "a1": a1,
+        "r2": "right",
+        "a2": a2,
+        "step1": idx.by_category[cat],
+        "step2": s1,
+        "step3": s1,
+        "step4": None,
+    }
     from refspatial_gen.qa.executor import PointValue
 
     env["step4"] = PointValue(idx.point(x), x)
@@ -223,7 +236,7 @@ def test_visual_choice_marks_travel_in_answer_struct(generated):
     assert vc
     for q in vc:
         marks = q.answer_struct["marks"]
-        assert [m["label"] for m in marks] == ["A", "B", "C"][:len(marks)]
+        assert [m["label"] for m in marks] == ["A", "B", "C"][: len(marks)]
         assert all(m["style"] in ("box", "point") and m["view"] == 0 for m in marks)
         k = "ABC".index(q.answer_struct["letter"])
         assert q.targets == [marks[k]["object_id"]]
@@ -243,8 +256,24 @@ def test_index_facts_equal_the_graph_query_index(scenes):
 
     for f, g in scenes[:3]:
         idx, gi = SceneIndex(f, g), GraphIndex(g, f)
-        for rel in ("tall", "short", "big", "small", "wide", "thin", "left", "right", "front", "behind", "above_image",
-                    "below_image", "above_world", "below_world", "touching", "facing"):
+        for rel in (
+            "tall",
+            "short",
+            "big",
+            "small",
+            "wide",
+            "thin",
+            "left",
+            "right",
+            "front",
+            "behind",
+            "above_image",
+            "below_image",
+            "above_world",
+            "below_world",
+            "touching",
+            "facing",
+        ):
             for a, b in permutations(idx.ids, 2):
                 mine, ref = idx.fact(rel, (a, b)), gi.fact(rel, a, b)
                 assert (mine is None) == (ref is None)
@@ -257,7 +286,7 @@ def test_key_steps_always_name_their_object(scenes, cfg):
     only name a graph phrase, a drawn mark, the free space, or (final position only) the answer target: the
     generator rejects anything else, as `verify` would."""
     from refspatial_gen.core.model import KeyStep, SceneGraph
-    from refspatial_gen.qa.generate import _check_key_phrases
+    from refspatial_gen.qa.keysteps import check_key_phrases as _check_key_phrases
 
     emitted = 0
     for k, (f, g) in enumerate(scenes):

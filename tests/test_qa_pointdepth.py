@@ -59,8 +59,13 @@ def test_generated_pairs_verify_and_cover_every_kind(samples):
             assert q.family == "point_depth" and q.steps == 1
             for x, y in POINT.findall(q.question):
                 assert 0.0 < float(x) < 1.0 and 0.0 < float(y) < 1.0
-    assert kinds == {"point_depth/depth", "point_depth/front", "point_depth/behind",
-                     "point_depth/rotation_horizontal", "point_depth/rotation_vertical"}
+    assert kinds == {
+        "point_depth/depth",
+        "point_depth/front",
+        "point_depth/behind",
+        "point_depth/rotation_horizontal",
+        "point_depth/rotation_vertical",
+    }
 
 
 def test_depth_answer_reads_the_depth_map(samples):
@@ -70,7 +75,7 @@ def test_depth_answer_reads_the_depth_map(samples):
     u, v = denormalise_point(px, py, f.camera.width, f.camera.height)
     assert q.answer_struct["value"] == pytest.approx(float(f.depth[v, u]), abs=1e-6)
     # the pixel is away from depth edges
-    patch = f.depth[v - 2:v + 3, u - 2:u + 3]
+    patch = f.depth[v - 2 : v + 3, u - 2 : u + 3]
     assert patch.min() > 0 and patch.max() - patch.min() <= SMOOTH_TOL
 
 
@@ -104,12 +109,18 @@ def test_planted_wrong_relation_and_moved_point_are_reported(samples):
 
 def test_planted_wrong_rotation_is_reported(samples):
     for rel in ("rotation_horizontal", "rotation_vertical"):
-        s, q = _one(samples[2], lambda q: q.template == f"point_depth/{rel}")
+        s, q = _one(samples[2], lambda q, rel=rel: q.template == f"point_depth/{rel}")
         q.answer_struct["value"] = -q.answer_struct["value"]
         assert any("recomputed" in r for r in _reasons(s))
-        s, q = _one(samples[2], lambda q: q.template == f"point_depth/{rel}")
-        q.answer = q.answer.replace("left", "X").replace("right", "left").replace("X", "right") \
-            .replace("up", "X").replace("down", "up").replace("X", "down")
+        s, q = _one(samples[2], lambda q, rel=rel: q.template == f"point_depth/{rel}")
+        q.answer = (
+            q.answer.replace("left", "X")
+            .replace("right", "left")
+            .replace("X", "right")
+            .replace("up", "X")
+            .replace("down", "up")
+            .replace("X", "down")
+        )
         assert any("does not say rotate" in r for r in _reasons(s))
 
 
@@ -175,6 +186,22 @@ def test_open3d_rgbd_sample(shared_data, tmp_path):
     if not data.is_dir():
         pytest.skip("open3d_rgbd sample absent")
     out = tmp_path / "traj"
-    assert main(["shards", "--recipe", str(REPO / "recipes" / "scan_trajectory.yaml"), "--input", str(data),
-                 "--out", str(out), "--fresh", "--quiet", "--workers", "1"]) == 0
+    assert (
+        main(
+            [
+                "shards",
+                "--recipe",
+                str(REPO / "recipes" / "scan_trajectory.yaml"),
+                "--input",
+                str(data),
+                "--out",
+                str(out),
+                "--fresh",
+                "--quiet",
+                "--workers",
+                "1",
+            ]
+        )
+        == 0
+    )
     assert main(["verify", str(out)]) == 0

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from refspatial_gen.qa.bench import default_config
-from refspatial_gen.qa.executor import Context, Search, answer_chain
+from refspatial_gen.qa.executor import Context, Search
 from refspatial_gen.qa.index import SceneIndex
 from refspatial_gen.qa.sample_rng import SampleRng
 from refspatial_gen.qa.templates import load_template_file
@@ -25,10 +25,10 @@ def _templates():
 
 def test_answer_chain_flags_follow_the_set_chain():
     ts = _templates()
-    assert answer_chain(ts["identify/two_conditions"]) == [True, True, True, False]
-    assert answer_chain(ts["locate/relation_closest"]) == [True, True, False, False]  # superlative feeds locate
-    assert answer_chain(ts["locate/by_phrase"]) == [False]
-    assert not any(answer_chain(ts["choice/yes_no_relation"]))  # a yes/no answer is not an object
+    assert ts["identify/two_conditions"].program.answer_chain == (True, True, True, False)
+    assert ts["locate/relation_closest"].program.answer_chain == (True, True, False, False)  # superlative feeds locate
+    assert ts["locate/by_phrase"].program.answer_chain == (False,)
+    assert not any(ts["choice/yes_no_relation"].program.answer_chain)  # a yes/no answer is not an object
 
 
 def test_answer_chain_stops_at_a_step_with_its_own_input(tmp_path):
@@ -44,7 +44,7 @@ templates:
 """)
     t = load_template_file(tmp_path / "own_input.yaml")[0]
     # the relate step reads `all`, so the filter's output does not bound the answer
-    assert answer_chain(t) == [False, True, False]
+    assert t.program.answer_chain == (False, True, False)
 
 
 @pytest.fixture(scope="module")
@@ -53,22 +53,30 @@ def scenes():
 
 
 def _answer(env, t):
-    return env[t.steps[-2].name] if not isinstance(env[t.steps[-2].name], frozenset) else next(iter(env[t.steps[-2].name]))
+    return (
+        env[t.steps[-2].name] if not isinstance(env[t.steps[-2].name], frozenset) else next(iter(env[t.steps[-2].name]))
+    )
 
 
 def test_pruned_search_finds_exactly_the_acceptable_instances(scenes):
     ts = _templates()
     compared = dropped = 0
-    for name in ("identify/two_conditions", "identify/between_and_relation", "locate/relation",
-                 "locate/relation_closest", "locate/between", "locate/superlative"):
+    for name in (
+        "identify/two_conditions",
+        "identify/between_and_relation",
+        "locate/relation",
+        "locate/relation_closest",
+        "locate/between",
+        "locate/superlative",
+    ):
         t = ts[name]
         for f, g in scenes:
             idx = SceneIndex(f, g)
             ids = sorted(idx.answer_points)
             allowed = frozenset(ids[::2])  # half of the objects are acceptable answers
-            full = Search(t, Context(idx, np.random.default_rng(7)), 10 ** 7)
+            full = Search(t, Context(idx, np.random.default_rng(7)), 10**7)
             want = [e for e in full.instances() if _answer(e, t) in allowed]
-            pruned = Search(t, Context(idx, np.random.default_rng(7)), 10 ** 7, answers=allowed)
+            pruned = Search(t, Context(idx, np.random.default_rng(7)), 10**7, answers=allowed)
             got = [e for e in pruned.instances() if _answer(e, t) in allowed]  # the caller's own check stays
             assert got == want, (name, f.frame_id)
             compared += len(want)
@@ -82,7 +90,7 @@ def test_sample_rng_is_reproducible_and_covers_its_range():
     assert seq_a == [b.integers(7) for _ in range(2000)]
     counts = np.bincount(seq_a, minlength=7)
     assert set(seq_a) == set(range(7)) and counts.min() > 200  # roughly uniform (expected 286 each)
-    assert SampleRng(np.random.default_rng(6)).integers(10 ** 9) != SampleRng(np.random.default_rng(5)).integers(10 ** 9)
+    assert SampleRng(np.random.default_rng(6)).integers(10**9) != SampleRng(np.random.default_rng(5)).integers(10**9)
     for n in (1, 2, 5, 9):
         p = a.permutation(n)
         assert sorted(p) == list(range(n))

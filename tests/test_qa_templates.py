@@ -15,9 +15,9 @@ from hypothesis import strategies as st
 from refspatial_gen.cli import main
 from refspatial_gen.core.errors import RecipeError, RecipeErrors
 from refspatial_gen.qa.config import load_qa_config
-from refspatial_gen.tools.lint import lint_file
 from refspatial_gen.qa.templates import compile_templates, load_template_file
 from refspatial_gen.qa.text import TextSyntaxError, parse, placeholders, render
+from refspatial_gen.tools.lint import lint_file
 from refspatial_gen.yamlpos import load_yaml
 
 REPO = Path(__file__).resolve().parents[1]
@@ -74,7 +74,7 @@ CASES = {
     "wrong type": ("{op: filter, category: cat}", "{op: filter, category: a}", 8, "is a anchor slot"),
     "wrong type of value": ("      a: anchor\n", "      a: 7\n", 6, "must be a type name or a mapping"),
     "unknown op": ("{op: locate}", "{op: teleport}", 10, "unknown op 'teleport'"),
-    "YAML syntax": ("      - \"Point to", "      - [\"Point to", 13, "YAML syntax"),
+    "YAML syntax": ('      - "Point to', '      - ["Point to', 13, "YAML syntax"),
 }
 
 
@@ -93,10 +93,16 @@ def test_lint_reports_each_error_class_with_file_and_line(case, tmp_path, capsys
 
 
 def test_step_count_out_of_range(tmp_path, capsys):
-    t = GOOD.replace("      - {op: locate}", textwrap.indent(textwrap.dedent("""\
+    t = GOOD.replace(
+        "      - {op: locate}",
+        textwrap.indent(
+            textwrap.dedent("""\
         - {op: relate, relation: rel, anchor: b}
         - {op: relate, relation: rel, anchor: c}
-        - {op: locate}"""), "      ")).replace("      a: anchor\n", "      a: anchor\n      b: anchor\n      c: anchor\n")
+        - {op: locate}"""),
+            "      ",
+        ),
+    ).replace("      a: anchor\n", "      a: anchor\n      b: anchor\n      c: anchor\n")
     t = t.replace("{rel} {a}.", "{rel} {a}, {b} and {c}.")
     p = tmp_path / "long.yaml"
     p.write_text(t)
@@ -132,13 +138,44 @@ def test_relation_slot_needs_wording_for_its_form(tmp_path):
 
 
 # ------------------------------------------------------------------------------------ fuzzing
-_words = st.sampled_from(["name", "slots", "program", "text", "op", "relate", "filter", "locate", "left", "cat",
-                          "category", "anchor", "relation", "type", "choices", "{cat}", "{a|b}", "[x]", "in", "as",
-                          "weight", "between", "anchors", "measure", "quantity", "distance", "mark", "choose"])
-_scalars = st.one_of(_words, st.integers(-3, 9), st.floats(allow_nan=False, width=16), st.booleans(), st.none(),
-                     st.text(max_size=12))
-_values = st.recursive(_scalars, lambda c: st.one_of(st.lists(c, max_size=4),
-                                                     st.dictionaries(_words, c, max_size=5)), max_leaves=25)
+_words = st.sampled_from(
+    [
+        "name",
+        "slots",
+        "program",
+        "text",
+        "op",
+        "relate",
+        "filter",
+        "locate",
+        "left",
+        "cat",
+        "category",
+        "anchor",
+        "relation",
+        "type",
+        "choices",
+        "{cat}",
+        "{a|b}",
+        "[x]",
+        "in",
+        "as",
+        "weight",
+        "between",
+        "anchors",
+        "measure",
+        "quantity",
+        "distance",
+        "mark",
+        "choose",
+    ]
+)
+_scalars = st.one_of(
+    _words, st.integers(-3, 9), st.floats(allow_nan=False, width=16), st.booleans(), st.none(), st.text(max_size=12)
+)
+_values = st.recursive(
+    _scalars, lambda c: st.one_of(st.lists(c, max_size=4), st.dictionaries(_words, c, max_size=5)), max_leaves=25
+)
 
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -187,12 +224,34 @@ def test_fuzzed_mutations_of_a_good_template(case, seed):
     assert errors  # every mutation above breaks the template, and is reported, not raised
 
 
-_recipe_words = st.sampled_from(["name", "seed", "scenes", "sources", "kind", "toy", "weight", "qa", "families",
-                                 "templates", "max_per_sample", "budget", "steps", "locate", "templates/locate.yaml",
-                                 "shards", "samples_per_shard", "config", "point_slack"])
-_recipe_values = st.recursive(st.one_of(_recipe_words, st.integers(-5, 40), st.none(), st.booleans()),
-                              lambda c: st.one_of(st.lists(c, max_size=3), st.dictionaries(_recipe_words, c, max_size=4)),
-                              max_leaves=20)
+_recipe_words = st.sampled_from(
+    [
+        "name",
+        "seed",
+        "scenes",
+        "sources",
+        "kind",
+        "toy",
+        "weight",
+        "qa",
+        "families",
+        "templates",
+        "max_per_sample",
+        "budget",
+        "steps",
+        "locate",
+        "templates/locate.yaml",
+        "shards",
+        "samples_per_shard",
+        "config",
+        "point_slack",
+    ]
+)
+_recipe_values = st.recursive(
+    st.one_of(_recipe_words, st.integers(-5, 40), st.none(), st.booleans()),
+    lambda c: st.one_of(st.lists(c, max_size=3), st.dictionaries(_recipe_words, c, max_size=4)),
+    max_leaves=20,
+)
 
 
 @settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])

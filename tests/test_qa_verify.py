@@ -112,9 +112,17 @@ def test_degenerate_step_is_reported(samples):
                     f = gi.fact(r2, target, other)
                     if f is None or f.holds is not True:
                         continue
-                    extra = {"op": "relate", "as": "extra", "weight": 2, "out": [target],
-                             "args": {"in": {"step": rel["as"]}, "relation": r2,
-                                      "anchor": {"slot": "x", "object": other, "phrase": gi.phrase(other)}}}
+                    extra = {
+                        "op": "relate",
+                        "as": "extra",
+                        "weight": 2,
+                        "out": [target],
+                        "args": {
+                            "in": {"step": rel["as"]},
+                            "relation": r2,
+                            "anchor": {"slot": "x", "object": other, "phrase": gi.phrase(other)},
+                        },
+                    }
                     loc["args"]["of"] = {"step": "extra"}
                     q.program = [filt, rel, extra, loc]
                     q.steps += 2
@@ -140,7 +148,9 @@ def test_trace_tampering_is_reported(samples):
 
 
 def test_wrong_choice_is_reported(samples):
-    s, q = _find(samples, lambda q: q.answer_struct["kind"] == "choice" and sorted(q.answer_struct["options"]) == ["no", "yes"])
+    s, q = _find(
+        samples, lambda q: q.answer_struct["kind"] == "choice" and sorted(q.answer_struct["options"]) == ["no", "yes"]
+    )
     k = "AB".index(q.answer_struct["letter"])
     other = "AB"[1 - k]
     q.answer_struct["letter"] = other
@@ -179,8 +189,10 @@ def test_new_template_family_is_yaml_only(tmp_path):
     (tmp_path / "mine").mkdir()
     (tmp_path / "mine" / "lower.yaml").write_text(NEW_FAMILY)
     r = tmp_path / "recipe.yaml"
-    r.write_text("name: mine\nsources:\n  - {kind: toy}\nqa:\n  max_per_sample: 6\n  families:\n"
-                 "    spatial_new: {weight: 1.0, templates: [mine/lower.yaml]}\n")
+    r.write_text(
+        "name: mine\nsources:\n  - {kind: toy}\nqa:\n  max_per_sample: 6\n  families:\n"
+        "    spatial_new: {weight: 1.0, templates: [mine/lower.yaml]}\n"
+    )
     recipe = load_recipe(r)
     assert [f.name for f in recipe.qa.families] == ["spatial_new"]
     out = []

@@ -15,7 +15,7 @@ import pytest
 
 from refspatial_gen.cli import main
 from refspatial_gen.shards import ShardError, ShardWriter, iter_raw, read_index, read_samples, write_index
-from refspatial_gen.shards.testing import make_samples
+from refspatial_gen.sources.toy_samples import make_samples
 from refspatial_gen.shards.trust import forget
 
 SHARD = "shard-00000.mcap"

@@ -11,7 +11,7 @@ from __future__ import annotations
 import pytest
 
 from refspatial_gen.shards import ShardWriter
-from refspatial_gen.shards.testing import make_samples
+from refspatial_gen.sources.toy_samples import make_samples
 
 
 def _decoded_updates(path):

@@ -7,7 +7,7 @@ import pytest
 
 from refspatial_gen.shards import ShardError, ShardWriter, read_samples, write_index
 from refspatial_gen.shards.integrity import check_shard_file, check_shards, salvage_shard
-from refspatial_gen.shards.testing import make_samples
+from refspatial_gen.sources.toy_samples import make_samples
 
 
 @pytest.fixture(scope="module")

@@ -18,7 +18,7 @@ from refspatial_gen.shards import (
     sha256_file,
     write_index,
 )
-from refspatial_gen.shards.testing import make_samples
+from refspatial_gen.sources.toy_samples import make_samples
 
 
 @pytest.fixture(scope="module")
@@ -186,7 +186,7 @@ def test_identical_bytes_across_processes(tmp_path, samples):
 
     infos = _write(tmp_path / "a.mcap", samples[:2])
     code = ("import sys; from pathlib import Path; from refspatial_gen.shards import ShardWriter; "
-            "from refspatial_gen.shards.testing import make_samples; w = ShardWriter(Path(sys.argv[1])); "
+            "from refspatial_gen.sources.toy_samples import make_samples; w = ShardWriter(Path(sys.argv[1])); "
             "[w.write(s) for s in make_samples(5, seed=3)[:2]]; print(w.finish()[0].sha256)")
     env = {**os.environ, "PYTHONHASHSEED": "12345"}
     out = subprocess.run([sys.executable, "-c", code, str(tmp_path / "b.mcap")], env=env, capture_output=True,

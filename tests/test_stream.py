@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from refspatial_gen.shards import ShardWriter, write_index
-from refspatial_gen.shards.testing import make_samples
+from refspatial_gen.sources.toy_samples import make_samples
 from refspatial_gen.stream import ShardStream, StreamQA, StreamSample
 
 SIZES = [3, 1, 4, 2, 5]

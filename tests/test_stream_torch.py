@@ -15,7 +15,7 @@ import pytest
 
 from helpers.stream_items import ids_of, item_id
 from refspatial_gen.shards import ShardWriter, write_index
-from refspatial_gen.shards.testing import make_samples
+from refspatial_gen.sources.toy_samples import make_samples
 from refspatial_gen.shards.trust import forget
 from refspatial_gen.stream import ShardStream
 

@@ -11,20 +11,35 @@ from pathlib import Path
 def register(sub) -> None:
     from refspatial_gen.shards.export import EXPORTERS
 
-    p = sub.add_parser("export", help="export a shard directory to a trainer's or benchmark's layout: "
-                       + ", ".join(EXPORTERS) + " (docs/shards.md, docs/eval.md)",
-                       description="Export into a new folder (written beside it, checked, then renamed into place). "
-                                   "Every shard is checked against index.json as it is read.")
+    p = sub.add_parser(
+        "export",
+        help="export a shard directory to a trainer's or benchmark's layout: "
+        + ", ".join(EXPORTERS)
+        + " (docs/shards.md, docs/eval.md)",
+        description="Export into a new folder (written beside it, checked, then renamed into place). "
+        "Every shard is checked against index.json as it is read.",
+    )
     p.add_argument("dir", help="shard directory (with index.json)")
     p.add_argument("--format", required=True, choices=list(EXPORTERS))
     p.add_argument("--out", required=True, help="output folder (must be empty or absent unless --overwrite)")
     p.add_argument("--overwrite", action="store_true", help="replace a non-empty output folder whole")
-    p.add_argument("--samples-per-shard", type=int, default=None,
-                   help="webdataset/hf: samples per tar or Parquet file (default: about 16 files, at most 256 each)")
-    p.add_argument("--no-check", action="store_true",
-                   help="skip the up-front check of the whole folder (each shard is still verified as it is read)")
-    p.add_argument("--split", action="append", choices=["train", "val", "test", "unseen"],
-                   help="sft, rft, refspatial-bench: splits to write (repeatable; defaults: train / train / test)")
+    p.add_argument(
+        "--samples-per-shard",
+        type=int,
+        default=None,
+        help="webdataset/hf: samples per tar or Parquet file (default: about 16 files, at most 256 each)",
+    )
+    p.add_argument(
+        "--no-check",
+        action="store_true",
+        help="skip the up-front check of the whole folder (each shard is still verified as it is read)",
+    )
+    p.add_argument(
+        "--split",
+        action="append",
+        choices=["train", "val", "test", "unseen"],
+        help="sft, rft, refspatial-bench: splits to write (repeatable; defaults: train / train / test)",
+    )
     p.set_defaults(func=cmd_export)
 
     q = sub.add_parser("inspect", help="a readable summary of one shard's samples")
@@ -55,12 +70,20 @@ def cmd_export(args) -> int:
             return _fail(f"--split applies to the sft, rft and refspatial-bench formats, not {args.format}")
         kw["splits"] = tuple(args.split)
     try:
-        res = export(Path(args.dir), args.format, Path(args.out), overwrite=args.overwrite,
-                     samples_per_shard=args.samples_per_shard, **kw)
+        res = export(
+            Path(args.dir),
+            args.format,
+            Path(args.out),
+            overwrite=args.overwrite,
+            samples_per_shard=args.samples_per_shard,
+            **kw,
+        )
     except (ValueError, OSError) as e:  # ShardError and ExportError are ValueErrors and name the file
         return _fail(str(e))
     except ImportError as e:
-        return _fail(f"--format {args.format} needs an optional package ({e.name}): pip install 'refspatial-gen[datasets]'")
+        return _fail(
+            f"--format {args.format} needs an optional package ({e.name}): pip install 'refspatial-gen[datasets]'"
+        )
     print(f"{args.out}: {json.dumps(res, sort_keys=True)}")
     return 0
 
@@ -81,18 +104,31 @@ def cmd_inspect(args) -> int:
             fam.update(q["family"] for q in m["qa"])
             steps.update(int(q["steps"]) for q in m["qa"])
             if args.json:
-                print(json.dumps({"sample_id": m["sample_id"], "unit_key": m["unit_key"], "views": len(m["frames"]),
-                                  "objects": [len(f["objects"]) for f in m["frames"]], "qa_pairs": len(m["qa"]),
-                                  "families": dict(sorted(Counter(q["family"] for q in m["qa"]).items()))},
-                                 sort_keys=True))
+                print(
+                    json.dumps(
+                        {
+                            "sample_id": m["sample_id"],
+                            "unit_key": m["unit_key"],
+                            "views": len(m["frames"]),
+                            "objects": [len(f["objects"]) for f in m["frames"]],
+                            "qa_pairs": len(m["qa"]),
+                            "families": dict(sorted(Counter(q["family"] for q in m["qa"]).items())),
+                        },
+                        sort_keys=True,
+                    )
+                )
             elif n <= args.limit:
                 f0 = m["frames"][0]
                 cats = Counter(o["category"] for o in f0["objects"])
-                lines.append(f"  [{raw.seq}] {m['sample_id']}  source={f0['source']}  views={len(m['frames'])}  "
-                             f"{f0['camera']['width']}x{f0['camera']['height']}  objects={len(f0['objects'])} "
-                             f"({', '.join(f'{k}={v}' for k, v in sorted(cats.items()))})  qa={len(m['qa'])}")
+                lines.append(
+                    f"  [{raw.seq}] {m['sample_id']}  source={f0['source']}  views={len(m['frames'])}  "
+                    f"{f0['camera']['width']}x{f0['camera']['height']}  objects={len(f0['objects'])} "
+                    f"({', '.join(f'{k}={v}' for k, v in sorted(cats.items()))})  qa={len(m['qa'])}"
+                )
                 for q in m["qa"][:2]:
-                    lines.append(f"      {q['family']}/{q['steps']} steps: {q['question'][:90]!r} -> {q['answer'][:40]!r}")
+                    lines.append(
+                        f"      {q['family']}/{q['steps']} steps: {q['question'][:90]!r} -> {q['answer'][:40]!r}"
+                    )
     except ShardError as e:
         return _fail(str(e))
     if not args.json:

@@ -9,10 +9,13 @@ from pathlib import Path
 
 
 def register(sub) -> None:
-    p = sub.add_parser("shards", help="generate a dataset from a recipe (resumes an interrupted run)",
-                       description="Generate shards from a recipe. Running it again on the same --out resumes: "
-                                   "finished shards are verified by hash and kept, unfinished ones are redone. "
-                                   "`shards salvage FILE` recovers the complete samples of an unfinished shard.")
+    p = sub.add_parser(
+        "shards",
+        help="generate a dataset from a recipe (resumes an interrupted run)",
+        description="Generate shards from a recipe. Running it again on the same --out resumes: "
+        "finished shards are verified by hash and kept, unfinished ones are redone. "
+        "`shards salvage FILE` recovers the complete samples of an unfinished shard.",
+    )
     p.add_argument("action", nargs="?", choices=["run", "salvage"], default="run")
     p.add_argument("paths", nargs="*", help="with `salvage`: unfinished shard files (*.partial)")
     p.add_argument("--recipe", default="recipes/default.yaml")
@@ -25,8 +28,13 @@ def register(sub) -> None:
     p.add_argument("--ray-address", default=None, help="Ray cluster address (default: start a local instance)")
     p.add_argument("--fresh", action="store_true", help="discard a previous run's output in --out")
     p.add_argument("--strict", action="store_true", help="stop on an internal error instead of counting it")
-    p.add_argument("--allow-root", action="append", default=[], metavar="DIR",
-                   help="also allow the recipe to read files under DIR (repeatable; see docs/reliability.md)")
+    p.add_argument(
+        "--allow-root",
+        action="append",
+        default=[],
+        metavar="DIR",
+        help="also allow the recipe to read files under DIR (repeatable; see docs/reliability.md)",
+    )
     p.add_argument("--no-report", action="store_true", help="skip the HTML run report")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_shards)
@@ -34,7 +42,9 @@ def register(sub) -> None:
     s = sub.add_parser("stats", help="dataset statistics of a shard folder")
     s.add_argument("dir")
     s.add_argument("--json", action="store_true")
-    s.add_argument("--no-check", action="store_true", help="skip the size/sha256 check of the shards against index.json")
+    s.add_argument(
+        "--no-check", action="store_true", help="skip the size/sha256 check of the shards against index.json"
+    )
     s.set_defaults(func=cmd_stats)
 
 
@@ -51,8 +61,7 @@ def _out_dir(args, recipe) -> Path:
     msg = check_name(recipe.name)
     out = OUT_ROOT / recipe.name
     if msg or not is_under(out.resolve(), OUT_ROOT.resolve()) or out.resolve() == OUT_ROOT.resolve():
-        raise RecipeError(recipe.path, 1, f"name: {msg or 'must name a folder under out/shards'} "
-                                          f"(or give --out)")
+        raise RecipeError(recipe.path, 1, f"name: {msg or 'must name a folder under out/shards'} (or give --out)")
     return out
 
 
@@ -91,8 +100,17 @@ def cmd_shards(args) -> int:
     recipe = load_recipe(args.recipe, seed=args.seed, scenes=args.scenes, input_path=inp, allow_roots=allow)
     out = _out_dir(args, recipe)
     ref = RecipeRef(str(Path(args.recipe).resolve()), args.seed, args.scenes, inp, allow)
-    result = run_plan(recipe, ref, out, workers=args.workers, executor=args.executor, ray_address=args.ray_address,
-                      strict=args.strict, fresh=args.fresh, progress=not args.quiet)
+    result = run_plan(
+        recipe,
+        ref,
+        out,
+        workers=args.workers,
+        executor=args.executor,
+        ray_address=args.ray_address,
+        strict=args.strict,
+        fresh=args.fresh,
+        progress=not args.quiet,
+    )
     st, log = result["stats"], result["run_log"]
     if not args.no_report:
         from refspatial_gen.run.report import write_report
@@ -102,21 +120,27 @@ def cmd_shards(args) -> int:
         report = write_report(out, st, log, info)
         print(f"report: {report}")
     dropped = sum(st["dropped"].values())
-    print(f"{out}: {st['samples']} samples, {st['qa_pairs']} QA pairs in {len(result['index']['shards'])} shards; "
-          f"{dropped} of {st['units']} units dropped {st['dropped'] or ''}; "
-          f"{log['wall_seconds']:.1f} s, {log['qa_per_s']:.1f} QA/s")
+    print(
+        f"{out}: {st['samples']} samples, {st['qa_pairs']} QA pairs in {len(result['index']['shards'])} shards; "
+        f"{dropped} of {st['units']} units dropped {st['dropped'] or ''}; "
+        f"{log['wall_seconds']:.1f} s, {log['qa_per_s']:.1f} QA/s"
+    )
     from refspatial_gen.run.report import silent_families
 
     silent = silent_families(st, {"families": {f.name: f.weight for f in recipe.qa.families}})
     if silent:
         print(f"warning: families that produced no QA pair: {', '.join(silent)} (see the report)", file=sys.stderr)
     if log["errors"]:
-        print(f"warning: {len(log['errors'])} units failed with internal errors; tracebacks in {out / 'run_log.json'}",
-              file=sys.stderr)
+        print(
+            f"warning: {len(log['errors'])} units failed with internal errors; tracebacks in {out / 'run_log.json'}",
+            file=sys.stderr,
+        )
     if st["units"] and not st["samples"]:
         top = sorted(st["dropped"].items(), key=lambda kv: (-kv[1], kv[0]))[:5]
-        print(f"refspatial-gen: every unit was dropped; top reasons: {', '.join(f'{k} ({v})' for k, v in top)}",
-              file=sys.stderr)
+        print(
+            f"refspatial-gen: every unit was dropped; top reasons: {', '.join(f'{k} ({v})' for k, v in top)}",
+            file=sys.stderr,
+        )
         return 1
     return 0
 
@@ -153,8 +177,11 @@ def cmd_stats(args) -> int:
     if problems:
         for pr in problems:
             print(f"{pr['file']}: {pr['problem']}: {pr['detail']}", file=sys.stderr)
-        print(f"stats: {args.dir}: {len(problems)} integrity problem(s); the statistics would not describe "
-              f"the shards on disk (--no-check shows them anyway)", file=sys.stderr)
+        print(
+            f"stats: {args.dir}: {len(problems)} integrity problem(s); the statistics would not describe "
+            f"the shards on disk (--no-check shows them anyway)",
+            file=sys.stderr,
+        )
         return 1
     st = index.get("stats")
     keys = ("samples", "qa_pairs", "by_relation", "by_family", "by_steps", "by_source", "dropped")
@@ -168,8 +195,10 @@ def cmd_stats(args) -> int:
     if args.json:
         print(json.dumps(out, indent=2, sort_keys=True))
         return 0
-    print(f"{args.dir}: {out['samples']} samples, {out['qa_pairs']} QA pairs, {out['shards']} shards, "
-          f"{sum(out['dropped'].values())} of {out['units']} units dropped")
+    print(
+        f"{args.dir}: {out['samples']} samples, {out['qa_pairs']} QA pairs, {out['shards']} shards, "
+        f"{sum(out['dropped'].values())} of {out['units']} units dropped"
+    )
     for key in ("by_family", "by_steps", "by_source", "by_relation", "dropped", "truth"):
         items = sorted(out[key].items(), key=lambda kv: (-kv[1], kv[0]))
         print(f"  {key}: " + ", ".join(f"{k}={v}" for k, v in items))

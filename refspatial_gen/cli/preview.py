@@ -21,9 +21,12 @@ def _preview(args: argparse.Namespace) -> int:
 
 
 def register(sub) -> None:
-    p = sub.add_parser("preview", help="PNG overlays of sampled QA pairs and an index.html gallery",
-                       description="Render a seeded sample of QA pairs from the shards under DIR: answer points, "
-                                   "target boxes, free-space regions, question, answer and trace.")
+    p = sub.add_parser(
+        "preview",
+        help="PNG overlays of sampled QA pairs and an index.html gallery",
+        description="Render a seeded sample of QA pairs from the shards under DIR: answer points, "
+        "target boxes, free-space regions, question, answer and trace.",
+    )
     p.add_argument("dir", help="folder with .mcap shards (searched recursively), or one shard file")
     p.add_argument("--out", required=True, help="output folder for the PNGs and index.html")
     p.add_argument("--n", type=int, default=24, help="number of QA pairs to show (default 24)")

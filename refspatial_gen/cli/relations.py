@@ -16,7 +16,9 @@ def _relations(args: argparse.Namespace) -> int:
     print(f"{len(rows)} relations ({len(SPEC_31)} from the spec, * = extra)")
     for r in rows:
         mark = " " if r["in_31"] else "*"
-        print(f"{mark} {r['id']:<20} {r['frame']:<5} arity {r['arity']}  [{', '.join(r['sources'])}]  {r['definition']}")
+        print(
+            f"{mark} {r['id']:<20} {r['frame']:<5} arity {r['arity']}  [{', '.join(r['sources'])}]  {r['definition']}"
+        )
     return 0
 
 

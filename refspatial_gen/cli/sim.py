@@ -4,20 +4,18 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+DEFAULT_RECIPE = Path(__file__).resolve().parents[2] / "recipes" / "default.yaml"
 
-def _config(args) -> dict:
-    cfg: dict = {}
-    if getattr(args, "recipe", None):
-        from refspatial_gen.recipe import load_recipe
 
-        spec = next((s for s in load_recipe(args.recipe).sources if s.kind == "sim"), None)
-        if spec is None:
-            raise SystemExit(f"{args.recipe}: no sim source")
-        cfg = {k: v for k, v in spec.config.items() if not k.startswith("_")}
+def _config(args: argparse.Namespace, base: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The sim source's config: the recipe's (`base`) with the command line's overrides on top."""
+    cfg: dict[str, Any] = dict(base or {})
     if getattr(args, "catalog", None):
         cfg["catalog"] = args.catalog
     if getattr(args, "layout", None):
@@ -29,27 +27,30 @@ def _config(args) -> dict:
     return cfg
 
 
-def _unit_rng(seed: int, unit: str) -> np.random.Generator:
-    """The generator a run would give this unit (run/ derives it from seed and unit key) when available."""
-    try:
-        from refspatial_gen.run.plan import unit_rng  # the run's own derivation, so exports match shards
-    except ImportError:
-        unit_rng = None
-    if unit_rng is not None:
-        return unit_rng(seed, unit)
-    import hashlib
+def run_unit(args: argparse.Namespace) -> tuple[Callable[[str], np.random.Generator], dict[str, Any]]:
+    """(unit key -> generator, source config) exactly as a run of `--recipe` makes them: the run seeds a unit
+    from (recipe seed, "s<source index>/<unit key>") and passes the recipe's sim section, so `sim usd`,
+    `describe` and `gallery` show the very scenes a run writes to its shards (unless an override changes the
+    config)."""
+    from refspatial_gen.recipe import load_recipe
+    from refspatial_gen.run.plan import unit_rng
 
-    h = int.from_bytes(hashlib.sha256(f"{seed}:{unit}".encode()).digest()[:8], "little")
-    return np.random.default_rng(h)
+    recipe = load_recipe(args.recipe or DEFAULT_RECIPE)
+    spec = next((s for s in recipe.sources if s.kind == "sim"), None)
+    if spec is None:
+        raise SystemExit(f"refspatial-gen sim: {args.recipe or DEFAULT_RECIPE}: no sim source")
+    seed = recipe.seed if args.seed is None else args.seed
+    base = {k: v for k, v in spec.config.items() if not k.startswith("_")}
+    return (lambda key: unit_rng(seed, f"s{spec.index}/{key}")), _config(args, base)
 
 
 def cmd_usd(args) -> int:
+    from refspatial_gen.assets import load_catalog
     from refspatial_gen.sources.sim import generate
     from refspatial_gen.sources.sim.usd import export_usd
-    from refspatial_gen.assets import load_catalog
 
-    cfg = _config(args)
-    frames, desc, sim = generate(args.unit, _unit_rng(args.seed, args.unit), cfg, keep_scene=True)
+    rng_for, cfg = run_unit(args)
+    frames, desc, sim = generate(args.unit, rng_for(args.unit), cfg, keep_scene=True)
     from refspatial_gen.sources.sim.source import catalog_paths
 
     out = export_usd(desc, sim, frames, args.out, load_catalog(catalog_paths(cfg.get("catalog")) or None).colors)
@@ -64,19 +65,22 @@ def cmd_describe(args) -> int:
     from refspatial_gen.sources.sim.scene import SettledScene
     from refspatial_gen.sources.sim.source import catalog_paths
 
-    cfg = _config(args)
-    frames, desc, sim = generate(args.unit, _unit_rng(args.seed, args.unit), cfg, keep_scene=True)
+    rng_for, cfg = run_unit(args)
+    frames, desc, sim = generate(args.unit, rng_for(args.unit), cfg, keep_scene=True)
     cat = load_catalog(catalog_paths(cfg.get("catalog")) or None)
     scene = SettledScene(desc, sim, cat.colors, cat.materials).describe([f.camera for f in frames])
     out = scene.save(args.out)
-    print(f"wrote {out}/scene.json ({len(scene.meshes)} meshes, {len(scene.lights)} lights, {len(scene.cameras)} cameras)")
+    print(
+        f"wrote {out}/scene.json ({len(scene.meshes)} meshes, {len(scene.lights)} lights, {len(scene.cameras)} cameras)"
+    )
     return 0
 
 
 def cmd_gallery(args) -> int:
     from refspatial_gen.sources.sim.gallery import gallery
 
-    info = gallery(args.out, args.scenes, args.seed, _config(args), thumb_width=args.thumb_width, quality=args.quality)
+    rng_for, cfg = run_unit(args)
+    info = gallery(args.out, args.scenes, 0, cfg, thumb_width=args.thumb_width, quality=args.quality, rng_for=rng_for)
     print(json.dumps(info, sort_keys=True))
     return 0
 
@@ -84,7 +88,8 @@ def cmd_gallery(args) -> int:
 def cmd_bench(args) -> int:
     from refspatial_gen.sources.sim.bench import stage_times
 
-    print(json.dumps(stage_times(args.scenes, args.seed, _config(args)), indent=1, sort_keys=True))
+    _, cfg = run_unit(args)
+    print(json.dumps(stage_times(args.scenes, args.seed or 0, cfg), indent=1, sort_keys=True))
     return 0
 
 
@@ -93,10 +98,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     ssub = s.add_subparsers(dest="sim_command", required=True)
 
     def common(p):
-        p.add_argument("--seed", type=int, default=0)
+        p.add_argument("--seed", type=int, default=None, help="run seed (default: the recipe's)")
         p.add_argument("--catalog", default="")
         p.add_argument("--layout", choices=["tabletop", "room"], default=None)
-        p.add_argument("--recipe", default="", help="take the sim source's config from this recipe")
+        p.add_argument(
+            "--recipe",
+            default="",
+            help="the run whose scenes to show: its sim config, seed and unit seeding (default recipes/default.yaml)",
+        )
         p.add_argument("--external-prob", type=float, default=None, dest="external_prob")
         p.add_argument("--views", type=int, default=None)
 
@@ -105,7 +114,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     u.add_argument("--out", required=True)
     common(u)
     u.set_defaults(func=cmd_usd)
-    d = ssub.add_parser("describe", help="write one scene's renderer-neutral description (scene.json, meshes.npz, textures)")
+    d = ssub.add_parser(
+        "describe", help="write one scene's renderer-neutral description (scene.json, meshes.npz, textures)"
+    )
     d.add_argument("--unit", default="sim:000000")
     d.add_argument("--out", required=True, help="folder")
     common(d)
@@ -121,7 +132,3 @@ def register(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--scenes", type=int, default=10)
     common(b)
     b.set_defaults(func=cmd_bench)
-
-
-if __name__ == "__main__":
-    sys.exit(0)

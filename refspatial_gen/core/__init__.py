@@ -20,6 +20,18 @@ from refspatial_gen.core.model import (
 )
 
 __all__ = [
-    "Box3D", "Camera", "Frame", "FreeSpaceRegion", "KeyStep", "Node", "ObjectInstance", "QAPair",
-    "RLE", "RelationFact", "Sample", "SceneGraph", "SupportSurface", "rot_z",
+    "Box3D",
+    "Camera",
+    "Frame",
+    "FreeSpaceRegion",
+    "KeyStep",
+    "Node",
+    "ObjectInstance",
+    "QAPair",
+    "RLE",
+    "RelationFact",
+    "Sample",
+    "SceneGraph",
+    "SupportSurface",
+    "rot_z",
 ]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -79,22 +80,35 @@ class Camera:
         ok = z > 0
         return self.cam_to_world(self.backproject(us[ok] + 0.5, vs[ok] + 0.5, z[ok]))
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return {
-            "width": int(self.width), "height": int(self.height),
-            "fx": float(self.fx), "fy": float(self.fy), "cx": float(self.cx), "cy": float(self.cy),
+            "width": int(self.width),
+            "height": int(self.height),
+            "fx": float(self.fx),
+            "fy": float(self.fy),
+            "cx": float(self.cx),
+            "cy": float(self.cy),
             "world_from_cam": [[round(float(x), 8) for x in row] for row in self.world_from_cam],
             "gravity_known": bool(self.gravity_known),
         }
 
     @classmethod
-    def from_json(cls, d: dict) -> "Camera":
-        return cls(d["width"], d["height"], d["fx"], d["fy"], d["cx"], d["cy"],
-                   np.array(d["world_from_cam"]), d.get("gravity_known", True))
+    def from_json(cls, d: dict[str, Any]) -> Camera:
+        return cls(
+            d["width"],
+            d["height"],
+            d["fx"],
+            d["fy"],
+            d["cx"],
+            d["cy"],
+            np.array(d["world_from_cam"]),
+            d.get("gravity_known", True),
+        )
 
 
-def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray = np.array([0.0, 0.0, 1.0])) -> np.ndarray:
-    """World-from-camera pose (OpenCV axes) for a camera at `eye` looking at `target`."""
+def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray | None = None) -> np.ndarray:
+    """World-from-camera pose (OpenCV axes) for a camera at `eye` looking at `target` (default up: +z)."""
+    up = np.array([0.0, 0.0, 1.0]) if up is None else up
     eye, target = np.asarray(eye, float), np.asarray(target, float)
     z = target - eye
     z /= np.linalg.norm(z)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 
 class DropUnit(Exception):
     """Raised by any stage when one input (scene, frame, image) is unusable.
@@ -40,7 +42,7 @@ class InputError(Exception):
         self.path, self.message = str(path), message
         super().__init__(f"{self.path}: {message}")
 
-    def __reduce__(self):  # picklable across worker processes
+    def __reduce__(self) -> tuple[type, tuple[str, str]]:  # picklable across worker processes
         return (InputError, (self.path, self.message))
 
 
@@ -52,7 +54,7 @@ class RunError(Exception):
         self.message, self.code = message, code
         super().__init__(message)
 
-    def __reduce__(self):
+    def __reduce__(self) -> tuple[type, tuple[Any, ...]]:
         return (RunError, (self.message, self.code))
 
 
@@ -63,7 +65,7 @@ class OutputIOError(RunError):
         self.path, self.reason = str(path), reason
         super().__init__(f"cannot write {self.path}: {reason}", 1)
 
-    def __reduce__(self):
+    def __reduce__(self) -> tuple[type, tuple[Any, ...]]:
         return (OutputIOError, (self.path, self.reason))
 
 

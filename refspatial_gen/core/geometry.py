@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -33,7 +34,7 @@ class Box3D:
             raise ValueError(f"Box3D with negative size {self.size.tolist()}")
 
     @classmethod
-    def from_yaw(cls, center, size, yaw: float = 0.0) -> "Box3D":
+    def from_yaw(cls, center: Any, size: Any, yaw: float = 0.0) -> Box3D:
         return cls(np.asarray(center, float), np.asarray(size, float), rot_z(yaw))
 
     @property
@@ -91,7 +92,7 @@ class Box3D:
         """Points on the six faces (n x n per face), for nearest-surface distances."""
         t = np.linspace(-0.5, 0.5, n)
         u, v = np.meshgrid(t, t, indexing="ij")
-        u, v = u.ravel(), v.ravel()
+        u, v = u.ravel(), v.ravel()  # type: ignore[assignment]
         faces = []
         for axis in range(3):
             a1, a2 = [i for i in range(3) if i != axis]
@@ -104,7 +105,7 @@ class Box3D:
         local = np.concatenate(faces) * self.size
         return self.center + local @ self.rotation.T
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return {
             "center": [round(float(x), 6) for x in self.center],
             "size": [round(float(x), 6) for x in self.size],
@@ -112,7 +113,7 @@ class Box3D:
         }
 
     @classmethod
-    def from_json(cls, d: dict) -> "Box3D":
+    def from_json(cls, d: dict[str, Any]) -> Box3D:
         return cls(np.array(d["center"]), np.array(d["size"]), np.array(d["rotation"]))
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -14,7 +15,7 @@ class RLE:
     counts: tuple[int, ...]
 
     @classmethod
-    def encode(cls, mask: np.ndarray) -> "RLE":
+    def encode(cls, mask: np.ndarray) -> RLE:
         m = np.asarray(mask, dtype=bool)
         flat = m.ravel(order="F").astype(np.int8)
         if flat.size == 0:
@@ -39,11 +40,11 @@ class RLE:
     def area(self) -> int:
         return int(sum(self.counts[1::2]))
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return {"size": [self.height, self.width], "counts": list(self.counts)}
 
     @classmethod
-    def from_json(cls, d: dict) -> "RLE":
+    def from_json(cls, d: dict[str, Any]) -> RLE:
         return cls(int(d["size"][0]), int(d["size"][1]), tuple(int(c) for c in d["counts"]))
 
 

@@ -16,7 +16,7 @@ from refspatial_gen.core.geometry import Box3D
 from refspatial_gen.core.mask import RLE
 
 
-def _vec(v) -> list[float] | None:
+def _vec(v: Any) -> list[float] | None:
     return None if v is None else [round(float(x), 6) for x in np.asarray(v).ravel()]
 
 
@@ -48,26 +48,37 @@ class ObjectInstance:
         f = self.box.rotation @ np.asarray(self.front, float)
         return f / np.linalg.norm(f)
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return {
-            "id": int(self.id), "category": self.category, "box": self.box.to_json(),
+            "id": int(self.id),
+            "category": self.category,
+            "box": self.box.to_json(),
             "mask": None if self.mask is None else self.mask.to_json(),
             "bbox2d": None if self.bbox2d is None else [round(float(x), 3) for x in self.bbox2d],
             "visible_fraction": round(float(self.visible_fraction), 6),
-            "name": self.name, "description": self.description, "attributes": dict(sorted(self.attributes.items())),
-            "front": _vec(self.front), "front_phrase": self.front_phrase, "provenance": self.provenance,
+            "name": self.name,
+            "description": self.description,
+            "attributes": dict(sorted(self.attributes.items())),
+            "front": _vec(self.front),
+            "front_phrase": self.front_phrase,
+            "provenance": self.provenance,
         }
 
     @classmethod
-    def from_json(cls, d: dict) -> "ObjectInstance":
+    def from_json(cls, d: dict[str, Any]) -> ObjectInstance:
         return cls(
-            id=d["id"], category=d["category"], box=Box3D.from_json(d["box"]),
+            id=d["id"],
+            category=d["category"],
+            box=Box3D.from_json(d["box"]),
             mask=None if d.get("mask") is None else RLE.from_json(d["mask"]),
             bbox2d=None if d.get("bbox2d") is None else tuple(d["bbox2d"]),
-            visible_fraction=d.get("visible_fraction", 1.0), name=d.get("name"), description=d.get("description"),
+            visible_fraction=d.get("visible_fraction", 1.0),
+            name=d.get("name"),
+            description=d.get("description"),
             attributes=dict(d.get("attributes") or {}),
             front=None if d.get("front") is None else np.array(d["front"]),
-            front_phrase=d.get("front_phrase"), provenance=dict(d.get("provenance") or {}),
+            front_phrase=d.get("front_phrase"),
+            provenance=dict(d.get("provenance") or {}),
         )
 
 
@@ -88,11 +99,17 @@ class SupportSurface:
     def top_z(self) -> float:
         return self.box.top_z
 
-    def to_json(self) -> dict:
-        return {"id": self.id, "kind": self.kind, "box": self.box.to_json(), "object_id": self.object_id, "name": self.name}
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "id": self.id,
+            "kind": self.kind,
+            "box": self.box.to_json(),
+            "object_id": self.object_id,
+            "name": self.name,
+        }
 
     @classmethod
-    def from_json(cls, d: dict) -> "SupportSurface":
+    def from_json(cls, d: dict[str, Any]) -> SupportSurface:
         return cls(d["id"], d["kind"], Box3D.from_json(d["box"]), d.get("object_id"), d.get("name"))
 
 
@@ -131,21 +148,30 @@ class Frame:
         if len(set(ids)) != len(ids):
             raise ValueError("duplicate object ids")
 
-    def meta_json(self) -> dict:
+    def meta_json(self) -> dict[str, Any]:
         """Everything but the pixel arrays."""
         return {
-            "frame_id": self.frame_id, "scene_id": self.scene_id, "source": self.source,
-            "camera": self.camera.to_json(), "objects": [o.to_json() for o in self.objects],
-            "surfaces": [s.to_json() for s in self.surfaces], "meta": self.meta,
+            "frame_id": self.frame_id,
+            "scene_id": self.scene_id,
+            "source": self.source,
+            "camera": self.camera.to_json(),
+            "objects": [o.to_json() for o in self.objects],
+            "surfaces": [s.to_json() for s in self.surfaces],
+            "meta": self.meta,
         }
 
     @classmethod
-    def from_meta_json(cls, d: dict, rgb: np.ndarray, depth: np.ndarray) -> "Frame":
+    def from_meta_json(cls, d: dict[str, Any], rgb: np.ndarray, depth: np.ndarray) -> Frame:
         return cls(
-            frame_id=d["frame_id"], rgb=rgb, depth=depth, camera=Camera.from_json(d["camera"]),
+            frame_id=d["frame_id"],
+            rgb=rgb,
+            depth=depth,
+            camera=Camera.from_json(d["camera"]),
             objects=[ObjectInstance.from_json(o) for o in d["objects"]],
             surfaces=[SupportSurface.from_json(s) for s in d.get("surfaces", [])],
-            source=d.get("source", "sim"), scene_id=d.get("scene_id", ""), meta=dict(d.get("meta") or {}),
+            source=d.get("source", "sim"),
+            scene_id=d.get("scene_id", ""),
+            meta=dict(d.get("meta") or {}),
         )
 
 
@@ -160,15 +186,26 @@ class Node:
     point: tuple[float, float] | None = None  # normalised answer point (RefSpatial convention)
     support: str | None = None  # id of the supporting surface, or "obj:<id>"
 
-    def to_json(self) -> dict:
-        return {"object_id": int(self.object_id), "category": self.category, "attributes": self.attributes,
-                "phrases": list(self.phrases), "point": None if self.point is None else [round(float(x), 3) for x in self.point],
-                "support": self.support}
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "object_id": int(self.object_id),
+            "category": self.category,
+            "attributes": self.attributes,
+            "phrases": list(self.phrases),
+            "point": None if self.point is None else [round(float(x), 3) for x in self.point],
+            "support": self.support,
+        }
 
     @classmethod
-    def from_json(cls, d: dict) -> "Node":
-        return cls(d["object_id"], d["category"], dict(d.get("attributes") or {}), list(d.get("phrases") or []),
-                   None if d.get("point") is None else tuple(d["point"]), d.get("support"))
+    def from_json(cls, d: dict[str, Any]) -> Node:
+        return cls(
+            d["object_id"],
+            d["category"],
+            dict(d.get("attributes") or {}),
+            list(d.get("phrases") or []),
+            None if d.get("point") is None else tuple(d["point"]),
+            d.get("support"),
+        )
 
 
 @dataclass(eq=False)
@@ -176,17 +213,22 @@ class RelationFact:
     """An evaluated relation. `holds` is None when the comparison is inside the margin (undecided)."""
 
     relation: str
-    args: tuple  # object ids (int) or surface ids (str), in the relation's argument order
+    args: tuple[Any, ...]  # object ids (int) or surface ids (str), in the relation's argument order
     holds: bool | None
     value: float  # the metric quantity the decision rests on (metres, radians, fraction, ...)
     margin: float
 
-    def to_json(self) -> dict:
-        return {"relation": self.relation, "args": list(self.args), "holds": self.holds,
-                "value": round(float(self.value), 6), "margin": round(float(self.margin), 6)}
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "relation": self.relation,
+            "args": list(self.args),
+            "holds": self.holds,
+            "value": round(float(self.value), 6),
+            "margin": round(float(self.margin), 6),
+        }
 
     @classmethod
-    def from_json(cls, d: dict) -> "RelationFact":
+    def from_json(cls, d: dict[str, Any]) -> RelationFact:
         return cls(d["relation"], tuple(d["args"]), d["holds"], d["value"], d["margin"])
 
 
@@ -196,7 +238,7 @@ class FreeSpaceRegion:
 
     surface_id: str
     kind: str  # "left_of", "right_of", "in_front_of", "behind", "between", "corner", "edge", ...
-    anchors: tuple  # object ids the region is defined relative to
+    anchors: tuple[Any, ...]  # object ids the region is defined relative to
     polygon_xy: list[tuple[float, float]]  # world-frame outline on the surface
     z: float
     area: float  # m^2
@@ -204,17 +246,32 @@ class FreeSpaceRegion:
     point: tuple[float, float]  # normalised image point
     label: str = ""  # e.g. "far-left corner", "right edge"
 
-    def to_json(self) -> dict:
-        return {"surface_id": self.surface_id, "kind": self.kind, "anchors": list(self.anchors),
-                "polygon_xy": [[round(float(x), 5), round(float(y), 5)] for x, y in self.polygon_xy],
-                "z": round(float(self.z), 6), "area": round(float(self.area), 6),
-                "point_world": [round(float(x), 6) for x in self.point_world],
-                "point": [round(float(x), 3) for x in self.point], "label": self.label}
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "surface_id": self.surface_id,
+            "kind": self.kind,
+            "anchors": list(self.anchors),
+            "polygon_xy": [[round(float(x), 5), round(float(y), 5)] for x, y in self.polygon_xy],
+            "z": round(float(self.z), 6),
+            "area": round(float(self.area), 6),
+            "point_world": [round(float(x), 6) for x in self.point_world],
+            "point": [round(float(x), 3) for x in self.point],
+            "label": self.label,
+        }
 
     @classmethod
-    def from_json(cls, d: dict) -> "FreeSpaceRegion":
-        return cls(d["surface_id"], d["kind"], tuple(d["anchors"]), [tuple(p) for p in d["polygon_xy"]], d["z"],
-                   d["area"], tuple(d["point_world"]), tuple(d["point"]), d.get("label", ""))
+    def from_json(cls, d: dict[str, Any]) -> FreeSpaceRegion:
+        return cls(
+            d["surface_id"],
+            d["kind"],
+            tuple(d["anchors"]),
+            [tuple(p) for p in d["polygon_xy"]],
+            d["z"],
+            d["area"],
+            tuple(d["point_world"]),
+            tuple(d["point"]),
+            d.get("label", ""),
+        )
 
 
 @dataclass(eq=False)
@@ -233,16 +290,24 @@ class SceneGraph:
                 return n
         raise KeyError(object_id)
 
-    def to_json(self) -> dict:
-        return {"frame_id": self.frame_id, "nodes": [n.to_json() for n in self.nodes],
-                "facts": [f.to_json() for f in self.facts], "free_space": [r.to_json() for r in self.free_space],
-                "meta": self.meta}
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "frame_id": self.frame_id,
+            "nodes": [n.to_json() for n in self.nodes],
+            "facts": [f.to_json() for f in self.facts],
+            "free_space": [r.to_json() for r in self.free_space],
+            "meta": self.meta,
+        }
 
     @classmethod
-    def from_json(cls, d: dict) -> "SceneGraph":
-        return cls(d["frame_id"], [Node.from_json(n) for n in d["nodes"]],
-                   [RelationFact.from_json(f) for f in d.get("facts", [])],
-                   [FreeSpaceRegion.from_json(r) for r in d.get("free_space", [])], dict(d.get("meta") or {}))
+    def from_json(cls, d: dict[str, Any]) -> SceneGraph:
+        return cls(
+            d["frame_id"],
+            [Node.from_json(n) for n in d["nodes"]],
+            [RelationFact.from_json(f) for f in d.get("facts", [])],
+            [FreeSpaceRegion.from_json(r) for r in d.get("free_space", [])],
+            dict(d.get("meta") or {}),
+        )
 
 
 @dataclass(eq=False)
@@ -253,11 +318,11 @@ class KeyStep:
     phrase: str  # exact target phrase used in the trace
     value: list[float]  # normalised (x, y) | unit vector (camera frame) | metres
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return {"type": self.type, "phrase": self.phrase, "value": [round(float(v), 3) for v in self.value]}
 
     @classmethod
-    def from_json(cls, d: dict) -> "KeyStep":
+    def from_json(cls, d: dict[str, Any]) -> KeyStep:
         return cls(d["type"], d["phrase"], list(d["value"]))
 
 
@@ -281,20 +346,44 @@ class QAPair:
     checks: list[str] = field(default_factory=list)  # names of the checks it passed
     targets: list[int] = field(default_factory=list)  # object ids the answer refers to (for verification)
 
-    def to_json(self) -> dict:
-        return {"qa_id": self.qa_id, "family": self.family, "template": self.template, "question": self.question,
-                "answer": self.answer, "answer_struct": self.answer_struct, "relations": list(self.relations),
-                "steps": int(self.steps), "frame_ids": list(self.frame_ids), "image_size": list(self.image_size),
-                "program": self.program, "trace": self.trace, "key_steps": [k.to_json() for k in self.key_steps],
-                "checks": list(self.checks), "targets": [int(t) for t in self.targets]}
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "qa_id": self.qa_id,
+            "family": self.family,
+            "template": self.template,
+            "question": self.question,
+            "answer": self.answer,
+            "answer_struct": self.answer_struct,
+            "relations": list(self.relations),
+            "steps": int(self.steps),
+            "frame_ids": list(self.frame_ids),
+            "image_size": list(self.image_size),
+            "program": self.program,
+            "trace": self.trace,
+            "key_steps": [k.to_json() for k in self.key_steps],
+            "checks": list(self.checks),
+            "targets": [int(t) for t in self.targets],
+        }
 
     @classmethod
-    def from_json(cls, d: dict) -> "QAPair":
-        return cls(d["qa_id"], d["family"], d["template"], d["question"], d["answer"], d["answer_struct"],
-                   list(d["relations"]), d["steps"], list(d["frame_ids"]), tuple(d["image_size"]),
-                   list(d.get("program") or []), d.get("trace", ""),
-                   [KeyStep.from_json(k) for k in d.get("key_steps") or []], list(d.get("checks") or []),
-                   list(d.get("targets") or []))
+    def from_json(cls, d: dict[str, Any]) -> QAPair:
+        return cls(
+            d["qa_id"],
+            d["family"],
+            d["template"],
+            d["question"],
+            d["answer"],
+            d["answer_struct"],
+            list(d["relations"]),
+            d["steps"],
+            list(d["frame_ids"]),
+            tuple(d["image_size"]),
+            list(d.get("program") or []),
+            d.get("trace", ""),
+            [KeyStep.from_json(k) for k in d.get("key_steps") or []],
+            list(d.get("checks") or []),
+            list(d.get("targets") or []),
+        )
 
 
 @dataclass(eq=False)

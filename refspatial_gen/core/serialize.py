@@ -16,11 +16,11 @@ def dumps(obj: Any) -> bytes:
     return json.dumps(obj, sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False).encode("utf-8")
 
 
-def envelope(kind: str, payload: dict) -> dict:
+def envelope(kind: str, payload: dict[str, Any]) -> dict[str, Any]:
     return {"schema_version": SCHEMA_VERSION, "kind": kind, **payload}
 
 
-def check_envelope(d: dict, kind: str) -> dict:
+def check_envelope(d: dict[str, Any], kind: str) -> dict[str, Any]:
     v = d.get("schema_version")
     if v != SCHEMA_VERSION:
         raise ValueError(f"{kind}: schema_version {v!r} not supported (this code reads {SCHEMA_VERSION})")

@@ -12,11 +12,12 @@ them. Each estimator declares `OPTIONS: dict[str, schema.Field]` so recipes are 
 
 from __future__ import annotations
 
-import importlib
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
+
+from refspatial_gen.core.registry import Registry
 
 
 @dataclass
@@ -74,24 +75,20 @@ class DepthEstimator(Protocol):
 
 
 # name -> "module:Class"
-_ESTIMATORS: dict[str, str] = {
-    "provided": "refspatial_gen.depth.provided:ProvidedDepth",
-    "depth-anything": "refspatial_gen.depth.depth_anything:DepthAnythingDepth",
-    "onnx": "refspatial_gen.depth.onnx_model:OnnxDepth",
-    "geometric": "refspatial_gen.depth.geometric:GeometricDepth",
-    "perception": "refspatial_gen.perception.photos:PerceptionDepth",  # photos loaded with `perception:`
-}
+ESTIMATORS: Registry[type] = Registry("depth estimator")
+ESTIMATORS.add("provided", "refspatial_gen.depth.provided:ProvidedDepth")
+ESTIMATORS.add("depth-anything", "refspatial_gen.depth.depth_anything:DepthAnythingDepth")
+ESTIMATORS.add("onnx", "refspatial_gen.depth.onnx_model:OnnxDepth")
+ESTIMATORS.add("geometric", "refspatial_gen.depth.geometric:GeometricDepth")
+ESTIMATORS.add("perception", "refspatial_gen.perception.photos:PerceptionDepth")  # photos loaded with `perception:`
 
 
 def estimator_names() -> list[str]:
-    return sorted(_ESTIMATORS)
+    return sorted(ESTIMATORS.names())
 
 
 def estimator_class(name: str) -> type:
-    if name not in _ESTIMATORS:
-        raise KeyError(f"unknown depth estimator {name!r} (known: {', '.join(estimator_names())})")
-    mod, attr = _ESTIMATORS[name].split(":")
-    return getattr(importlib.import_module(mod), attr)
+    return ESTIMATORS.get(name)
 
 
 def check_options(name: str, options: dict[str, Any]) -> str | None:

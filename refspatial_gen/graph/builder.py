@@ -23,7 +23,7 @@ CONFIG_KEYS = {"scale", "thresholds", "free_space", "fit_gravity"}
 
 
 def decide_scale(frame: Frame) -> str:
-    """"room" for furniture-sized objects or wide scenes, else "tabletop"."""
+    """ "room" for furniture-sized objects or wide scenes, else "tabletop"."""
     if not frame.objects:
         return "tabletop"
     sizes = np.array([o.box.size for o in frame.objects])
@@ -53,7 +53,7 @@ def geometry(frame: Frame, config: dict[str, Any] | None = None) -> SceneGeom:
     return geom
 
 
-def _r(x, nd: int = 3):
+def _r(x: Any, nd: int = 3) -> Any:
     if isinstance(x, (list, tuple, np.ndarray)):
         return [_r(v, nd) for v in np.asarray(x, float).ravel()]
     return round(float(x), nd)
@@ -84,13 +84,23 @@ def make_nodes(geom: SceneGeom) -> list[Node]:
     for i in np.argsort(geom.ids, kind="stable"):
         o = geom.frame.objects[i]
         attrs = {
-            "color": geom.colours[i], "color_from": geom.colour_how[i],
-            "center": _r(geom.centers[i], 5), "size": _r(geom.boxes[i].size, 4), "height": _r(geom.height[i], 5),
-            "width": _r(geom.width[i], 5), "volume": float(f"{geom.volume[i]:.5g}"), "img_xy": _r(geom.img_centroid[i], 4),
-            "near_depth": _r(geom.near_depth[i]), "visible_px": int(geom.mask_area[i]),
-            "x_ordinal": int(x_ord[i]), "depth_ordinal": int(d_ord[i]), "height_rank": int(h_rank[i]),
-            "size_rank": int(v_rank[i]), "category_count": len(groups[o.category]),
-            "front": _r(hf[i], 5) if np.isfinite(hf[i]).all() else None, "surface": roots[i],
+            "color": geom.colours[i],
+            "color_from": geom.colour_how[i],
+            "center": _r(geom.centers[i], 5),
+            "size": _r(geom.boxes[i].size, 4),
+            "height": _r(geom.height[i], 5),
+            "width": _r(geom.width[i], 5),
+            "volume": float(f"{geom.volume[i]:.5g}"),
+            "img_xy": _r(geom.img_centroid[i], 4),
+            "near_depth": _r(geom.near_depth[i]),
+            "visible_px": int(geom.mask_area[i]),
+            "x_ordinal": int(x_ord[i]),
+            "depth_ordinal": int(d_ord[i]),
+            "height_rank": int(h_rank[i]),
+            "size_rank": int(v_rank[i]),
+            "category_count": len(groups[o.category]),
+            "front": _r(hf[i], 5) if np.isfinite(hf[i]).all() else None,
+            "surface": roots[i],
         }
         s = supports[i]
         pt = None if geom.points[i] is None else (float(geom.points[i][0]), float(geom.points[i][1]))
@@ -116,12 +126,26 @@ def graph_from_geometry(geom: SceneGeom, free_space: bool = True) -> SceneGraph:
     from refspatial_gen.graph.relations.surface import surface_labels
 
     names = {s.id: (s.name or f"the {s.kind}") for s in geom.surfaces}
-    surfaces = {sid: {"z": round(float(e["z"]), 4), "name": names[sid], "corners": sorted(e["corners"]),
-                      "edges": sorted(e["edges"])}
-                for sid, e in surface_labels(geom).items()} if geom.world_ok else {}
+    surfaces = (
+        {
+            sid: {
+                "z": round(float(e["z"]), 4),
+                "name": names[sid],
+                "corners": sorted(e["corners"]),
+                "edges": sorted(e["edges"]),
+            }
+            for sid, e in surface_labels(geom).items()
+        }
+        if geom.world_ok
+        else {}
+    )
     meta = {
-        "scale": geom.cache["scale"], "thresholds": geom.th.to_json(), "gravity": geom.gravity.to_json(),
-        "world_relations": bool(geom.world_ok), "surfaces": surfaces, "source": geom.frame.source,
+        "scale": geom.cache["scale"],
+        "thresholds": geom.th.to_json(),
+        "gravity": geom.gravity.to_json(),
+        "world_relations": bool(geom.world_ok),
+        "surfaces": surfaces,
+        "source": geom.frame.source,
         "image_size": [geom.W, geom.H],
     }
     return SceneGraph(geom.frame.frame_id, nodes, facts, regions, meta)

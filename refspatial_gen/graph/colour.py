@@ -19,8 +19,16 @@ MIN_PIXELS = 20
 MAJORITY = 0.5
 SOURCE_SUPPORT = 0.25
 # OpenCV hue (0..180) upper bounds of each chromatic bin
-_HUE_BINS = ((8, "red"), (20, "orange"), (35, "yellow"), (85, "green"), (130, "blue"), (150, "purple"),
-             (170, "pink"), (181, "red"))
+_HUE_BINS = (
+    (8, "red"),
+    (20, "orange"),
+    (35, "yellow"),
+    (85, "green"),
+    (130, "blue"),
+    (150, "purple"),
+    (170, "pink"),
+    (181, "red"),
+)
 _IDX = {w: k for k, w in enumerate(VOCABULARY)}
 _HUE_CODES = np.array([_IDX[w] for _, w in _HUE_BINS], dtype=np.int32)
 MAX_PIXELS = 4000

@@ -12,6 +12,8 @@ re-checked after rounding to RefSpatial's three decimals with `check_free_point`
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import shapely
 from shapely.geometry import Polygon
@@ -28,11 +30,11 @@ OBSTACLE_HEIGHT = 0.005  # an object reaching this far above the surface blocks 
 MAX_BETWEEN_GAP = {"tabletop": 0.6, "room": 3.0}
 MIN_BETWEEN_GAP_FACTOR = 2.0
 BETWEEN_NEIGHBOURS = 3  # "between" regions for each anchor and its nearest neighbours only
-SIMPLIFY = 0.003  # m, stored outlines are simplified by this much (the checker uses the stored outline)  # the gap must exceed this many clearances
+SIMPLIFY = 0.003  # m, stored outlines are simplified by this much (the checker uses the stored outline)
 
 
 # ----------------------------------------------------------------------------- shared geometry
-def gravity_rotation(graph_or_geom) -> np.ndarray:
+def gravity_rotation(graph_or_geom: Any) -> np.ndarray:
     if isinstance(graph_or_geom, SceneGeom):
         return graph_or_geom.gravity.rotation
     g = graph_or_geom.meta.get("gravity", {})
@@ -67,9 +69,14 @@ def obstacle_footprints(frame: Frame, G: np.ndarray, z: float, gap: float) -> li
     return out
 
 
-def check_free_point(frame: Frame, graph: SceneGraph, region: FreeSpaceRegion,
-                     point: tuple[float, float] | None = None, obstacles: list[np.ndarray] | None = None,
-                     surface_outline: np.ndarray | None = None) -> list[str]:
+def check_free_point(
+    frame: Frame,
+    graph: SceneGraph,
+    region: FreeSpaceRegion,
+    point: tuple[float, float] | None = None,
+    obstacles: list[np.ndarray] | None = None,
+    surface_outline: np.ndarray | None = None,
+) -> list[str]:
     """Problems with a free-space answer point (the region's own point by default); [] means valid.
 
     Checks: inside the image; the pixel's ray meets the surface plane in front of the camera; the hit
@@ -126,13 +133,18 @@ def _view_polygon(geom: SceneGeom, z: float) -> Polygon | None:
     if "_view_rays" not in geom.cache:  # the border rays do not depend on the plane: one set per frame
         W, H = geom.W, geom.H
         k = 12
-        border = ([(x, 0) for x in np.linspace(0, W - 1, k)] + [(W - 1, y) for y in np.linspace(0, H - 1, k)]
-                  + [(x, H - 1) for x in np.linspace(W - 1, 0, k)] + [(0, y) for y in np.linspace(H - 1, 0, k)])
+        border = (
+            [(x, 0) for x in np.linspace(0, W - 1, k)]
+            + [(W - 1, y) for y in np.linspace(0, H - 1, k)]
+            + [(x, H - 1) for x in np.linspace(W - 1, 0, k)]
+            + [(0, y) for y in np.linspace(H - 1, 0, k)]
+        )
         cam, G = geom.frame.camera, geom.gravity.rotation
         R, o = G @ cam.world_from_cam[:3, :3], G @ cam.world_from_cam[:3, 3]
         # one matrix-vector product per pixel, as pixel_to_plane does, so the hull matches its rays bit for bit
-        rays = np.array([R @ np.array([(x + 0.5 - cam.cx) / cam.fx, (y + 0.5 - cam.cy) / cam.fy, 1.0])
-                         for x, y in border])
+        rays = np.array(
+            [R @ np.array([(x + 0.5 - cam.cx) / cam.fx, (y + 0.5 - cam.cy) / cam.fy, 1.0]) for x, y in border]
+        )
         geom.cache["_view_rays"] = (o, rays)
     o, d = geom.cache["_view_rays"]
     ok = np.abs(d[:, 2]) >= 1e-12
@@ -144,7 +156,7 @@ def _view_polygon(geom: SceneGeom, z: float) -> Polygon | None:
     return shapely.convex_hull(shapely.multipoints(np.array(pts)))
 
 
-def _largest(g) -> Polygon | None:
+def _largest(g: Any) -> Polygon | None:
     if g is None or g.is_empty:
         return None
     if isinstance(g, Polygon):
@@ -209,8 +221,18 @@ def _visible_samples(geom: SceneGeom, poly: Polygon, z: float, min_area: float =
     return pts[ok], step
 
 
-def _region(geom: SceneGeom, graph_stub: SceneGraph, sid: str, kind: str, anchors: tuple, poly: Polygon,
-            z: float, label: str, obstacles: list[np.ndarray], outline: np.ndarray) -> FreeSpaceRegion | None:
+def _region(
+    geom: SceneGeom,
+    graph_stub: SceneGraph,
+    sid: str,
+    kind: str,
+    anchors: tuple[Any, ...],
+    poly: Polygon,
+    z: float,
+    label: str,
+    obstacles: list[np.ndarray],
+    outline: np.ndarray,
+) -> FreeSpaceRegion | None:
     poly = poly.simplify(SIMPLIFY, preserve_topology=True)
     if not isinstance(poly, Polygon) or poly.is_empty:
         return None
@@ -232,8 +254,9 @@ def _region(geom: SceneGeom, graph_stub: SceneGraph, sid: str, kind: str, anchor
         hit = pixel_to_plane(geom.frame, G, px, py, z)
         if hit is None:
             continue
-        r = FreeSpaceRegion(sid, kind, tuple(anchors), poly_xy, z, round(area, 6),
-                            (float(hit[0]), float(hit[1]), float(z)), p, label)
+        r = FreeSpaceRegion(
+            sid, kind, tuple(anchors), poly_xy, z, round(area, 6), (float(hit[0]), float(hit[1]), float(z)), p, label
+        )
         if not check_free_point(geom.frame, graph_stub, r, obstacles=obstacles, surface_outline=outline):
             return r
     return None
@@ -253,81 +276,96 @@ def free_regions(geom: SceneGeom) -> list[FreeSpaceRegion]:
 def _build(geom: SceneGeom) -> list[FreeSpaceRegion]:
     from refspatial_gen.graph.relations.surface import surface_labels
 
-    th = geom.th
-    supports, roots = get_supports(geom)
+    supports, _roots = get_supports(geom)
     labels = surface_labels(geom)
-    axes = geom.camera_axes_horizontal()
-    scale = geom.cache.get("scale", "tabletop")
-    G = geom.gravity.rotation
-    meta = {"thresholds": th.to_json(), "gravity": {"rotation": G.tolist()}}
+    meta = {"thresholds": geom.th.to_json(), "gravity": {"rotation": geom.gravity.rotation.tolist()}}
     stub = SceneGraph(geom.frame.frame_id, [], [], [], meta)
     out: list[FreeSpaceRegion] = []
     for s in geom.surfaces:
-        z = s.top_z
-        surf = Polygon(surface_polygon(s.box)).buffer(-th.free_clearance, join_style="mitre")
-        view = _view_polygon(geom, z)
-        if surf.is_empty or view is None:
+        out += _surface_regions(geom, s, supports, labels.get(s.id, {}), stub)
+    return out
+
+
+def _surface_regions(
+    geom: SceneGeom, s: Any, supports: Any, lab: dict[str, Any], stub: SceneGraph
+) -> list[FreeSpaceRegion]:
+    """The free regions of one support surface: beside each object standing on it (left/right/front/behind),
+    between neighbouring objects, and in its labelled corners and along its labelled edges."""
+    th = geom.th
+    z = s.top_z
+    surf = Polygon(surface_polygon(s.box)).buffer(-th.free_clearance, join_style="mitre")
+    view = _view_polygon(geom, z)
+    if surf.is_empty or view is None:
+        return []
+    obst_fp = _obstacles(geom, z, th.support_gap)
+    outline = surface_polygon(s.box)
+    obst = (
+        list(shapely.buffer(shapely.polygons(np.asarray(obst_fp, float)), th.free_clearance, join_style="mitre"))
+        if obst_fp
+        else []
+    )
+    free = surf.intersection(view)
+    if obst:
+        free = free.difference(unary_union(obst))
+    if free.is_empty:
+        return []
+    out: list[FreeSpaceRegion] = []
+
+    def add(kind: str, anchors: tuple[int, ...], shape: Any, label: str = "") -> None:
+        poly = _largest(free.intersection(shape))
+        if poly is not None:
+            r = _region(geom, stub, s.id, kind, anchors, poly, z, label, obst_fp, outline)
+            if r is not None:
+                out.append(r)
+
+    on_s = [
+        i
+        for i in np.argsort(geom.ids, kind="stable")
+        if supports[i] is not None and supports[i].kind == "surface" and supports[i].ref == s.id
+    ]
+    axes = geom.camera_axes_horizontal()
+    if axes is not None:
+        right, fwd = axes
+        dirs = (("left_of", -right[:2]), ("right_of", right[:2]), ("in_front_of", -fwd[:2]), ("behind", fwd[:2]))
+        for i in on_s:
+            fp = geom.footprints[i]
+            diag = float(np.linalg.norm(fp[2] - fp[0]))
+            radius = diag / 2 + max(diag, th.free_radius_min)
+            for kind, d in dirs:
+                add(kind, (int(geom.ids[i]),), _wedge(geom.centers[i, :2], d, radius))
+    for i, j in _between_pairs(geom, on_s):
+        hull = shapely.convex_hull(shapely.MultiPoint(np.vstack([geom.footprints[i], geom.footprints[j]])))
+        add("between", (int(geom.ids[i]), int(geom.ids[j])), hull)
+    spoly: Any = lab.get("polygon")
+    for name, p in sorted(lab.get("corners", {}).items()):
+        k = int(np.argmin(np.linalg.norm(spoly - p, axis=1)))
+        e1 = spoly[(k + 1) % 4] - p
+        e2 = spoly[(k - 1) % 4] - p
+        e1 = e1 / np.linalg.norm(e1) * min(th.corner_size, np.linalg.norm(e1) / 2)
+        e2 = e2 / np.linalg.norm(e2) * min(th.corner_size, np.linalg.norm(e2) / 2)
+        add("corner", (), shapely.polygons(np.array([p, p + e1, p + e1 + e2, p + e2])), f"{name} corner")
+    for name, (a, b) in sorted(lab.get("edges", {}).items()):
+        e = (b - a) / np.linalg.norm(b - a)
+        inward = np.array([-e[1], e[0]])
+        w = min(th.edge_width, float(np.linalg.norm(b - a)) / 2)
+        add("edge", (), shapely.polygons(np.array([a, b, b + inward * w, a + inward * w])), name)
+    return out
+
+
+def _between_pairs(geom: SceneGeom, on_s: list[Any]) -> list[tuple[int, int]]:
+    """Each object on the surface with its nearest neighbours there, at a gap a free spot fits in."""
+    th = geom.th
+    pairs: set[tuple[int, ...]] = set()
+    for i in on_s:
+        near = sorted((j for j in on_s if j != i), key=lambda j: (geom.surface_distance[i, j], int(geom.ids[j])))
+        pairs.update(tuple(sorted((int(i), int(j)), key=lambda k: int(geom.ids[k]))) for j in near[:BETWEEN_NEIGHBOURS])
+    out = []
+    for i, j in sorted(pairs, key=lambda p: (int(geom.ids[p[0]]), int(geom.ids[p[1]]))):
+        gapd = geom.surface_distance[i, j]
+        if (
+            gapd < MIN_BETWEEN_GAP_FACTOR * th.free_clearance * 2
+            or gapd > MAX_BETWEEN_GAP[geom.cache.get("scale", "tabletop")]
+        ):
             continue
-        obst_fp = _obstacles(geom, z, th.support_gap)
-        outline = surface_polygon(s.box)
-        obst = list(shapely.buffer(shapely.polygons(np.asarray(obst_fp, float)), th.free_clearance, join_style="mitre")) if obst_fp else []
-        free = surf.intersection(view)
-        if obst:
-            free = free.difference(unary_union(obst))
-        if free.is_empty:
-            continue
-        on_s = [i for i in np.argsort(geom.ids, kind="stable")
-                if supports[i] is not None and supports[i].kind == "surface" and supports[i].ref == s.id]
-        if axes is not None:
-            right, fwd = axes
-            dirs = (("left_of", -right[:2]), ("right_of", right[:2]), ("in_front_of", -fwd[:2]), ("behind", fwd[:2]))
-            for i in on_s:
-                fp = geom.footprints[i]
-                diag = float(np.linalg.norm(fp[2] - fp[0]))
-                radius = diag / 2 + max(diag, th.free_radius_min)
-                c = geom.centers[i, :2]
-                for kind, d in dirs:
-                    poly = _largest(free.intersection(_wedge(c, d, radius)))
-                    if poly is not None:
-                        r = _region(geom, stub, s.id, kind, (int(geom.ids[i]),), poly, z, "", obst_fp, outline)
-                        if r is not None:
-                            out.append(r)
-        pairs = set()
-        for i in on_s:  # each anchor with its nearest neighbours on the surface
-            near = sorted((j for j in on_s if j != i), key=lambda j: (geom.surface_distance[i, j], int(geom.ids[j])))
-            pairs.update(tuple(sorted((int(i), int(j)), key=lambda k: int(geom.ids[k]))) for j in near[:BETWEEN_NEIGHBOURS])
-        for i, j in sorted(pairs, key=lambda p: (int(geom.ids[p[0]]), int(geom.ids[p[1]]))):
-            gapd = geom.surface_distance[i, j]
-            if gapd < MIN_BETWEEN_GAP_FACTOR * th.free_clearance * 2 or gapd > MAX_BETWEEN_GAP[scale]:
-                continue
-            hull = shapely.convex_hull(shapely.MultiPoint(np.vstack([geom.footprints[i], geom.footprints[j]])))
-            poly = _largest(free.intersection(hull))
-            if poly is not None:
-                r = _region(geom, stub, s.id, "between", (int(geom.ids[i]), int(geom.ids[j])), poly, z, "", obst_fp, outline)
-                if r is not None:
-                    out.append(r)
-        lab = labels.get(s.id, {})
-        spoly = lab.get("polygon")
-        for name, p in sorted(lab.get("corners", {}).items()):
-            k = int(np.argmin(np.linalg.norm(spoly - p, axis=1)))
-            e1 = spoly[(k + 1) % 4] - p
-            e2 = spoly[(k - 1) % 4] - p
-            e1 = e1 / np.linalg.norm(e1) * min(th.corner_size, np.linalg.norm(e1) / 2)
-            e2 = e2 / np.linalg.norm(e2) * min(th.corner_size, np.linalg.norm(e2) / 2)
-            sq = shapely.polygons(np.array([p, p + e1, p + e1 + e2, p + e2]))
-            poly = _largest(free.intersection(sq))
-            if poly is not None:
-                r = _region(geom, stub, s.id, "corner", (), poly, z, f"{name} corner", obst_fp, outline)
-                if r is not None:
-                    out.append(r)
-        for name, (a, b) in sorted(lab.get("edges", {}).items()):
-            e = (b - a) / np.linalg.norm(b - a)
-            inward = np.array([-e[1], e[0]])
-            w = min(th.edge_width, float(np.linalg.norm(b - a)) / 2)
-            band = shapely.polygons(np.array([a, b, b + inward * w, a + inward * w]))
-            poly = _largest(free.intersection(band))
-            if poly is not None:
-                r = _region(geom, stub, s.id, "edge", (), poly, z, name, obst_fp, outline)
-                if r is not None:
-                    out.append(r)
+        out.append((i, j))
     return out

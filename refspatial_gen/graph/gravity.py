@@ -9,6 +9,7 @@ graph to camera- and image-frame relations.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -29,9 +30,9 @@ class Gravity:
     known: bool
     rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
     method: str = "frame"  # "frame" | "fitted_plane" | "unknown"
-    detail: dict = field(default_factory=dict)
+    detail: dict[str, Any] = field(default_factory=dict)
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         out = {"known": self.known, "method": self.method, **self.detail}
         if self.method == "fitted_plane":
             out["rotation"] = [[round(float(x), 8) for x in row] for row in self.rotation]
@@ -50,7 +51,7 @@ def _rotation_to_z(up: np.ndarray) -> np.ndarray:
     return np.eye(3) + vx + vx @ vx * ((1 - c) / s**2)
 
 
-def fit_up_from_depth(frame: Frame, seed: int = 0) -> tuple[np.ndarray | None, dict]:
+def fit_up_from_depth(frame: Frame, seed: int = 0) -> tuple[np.ndarray | None, dict[str, Any]]:
     """Up direction in camera coordinates from the largest roughly-horizontal plane, or None."""
     import open3d as o3d
 
@@ -82,7 +83,10 @@ def fit_up_from_depth(frame: Frame, seed: int = 0) -> tuple[np.ndarray | None, d
         pcd = pcd.select_by_index(inl, invert=True)
     if best is None:
         return None, {"reason": "no_horizontal_plane"}
-    return best[0], {"inlier_share": round(float(best[1]), 4), "tilt_from_camera_up_deg": round(float(np.rad2deg(best[2])), 2)}
+    return best[0], {
+        "inlier_share": round(float(best[1]), 4),
+        "tilt_from_camera_up_deg": round(float(np.rad2deg(best[2])), 2),
+    }
 
 
 def resolve_gravity(frame: Frame, fit_plane: bool = True) -> Gravity:

@@ -124,7 +124,7 @@ def make_phrases(geom: SceneGeom) -> list[list[str]]:
     result = []
     for i in range(n):
         seen, items = set(), []
-        for pri, p in sorted(out[i], key=lambda t: (len(t[1].split()), t[0], t[1])):
+        for _pri, p in sorted(out[i], key=lambda t: (len(t[1].split()), t[0], t[1])):
             if p not in seen:
                 seen.add(p)
                 items.append(p)
@@ -133,8 +133,13 @@ def make_phrases(geom: SceneGeom) -> list[list[str]]:
     return result
 
 
-def _anchor_phrases(geom: SceneGeom, by_cat: dict[str, list[int]], cats: list[str], simple: dict[int, str],
-                    out: dict[int, list[tuple[int, str]]]) -> None:
+def _anchor_phrases(
+    geom: SceneGeom,
+    by_cat: dict[str, list[int]],
+    cats: list[str],
+    simple: dict[int, str],
+    out: dict[int, list[tuple[int, str]]],
+) -> None:
     if not geom.world_ok:
         return
     d = geom.surface_distance
@@ -154,21 +159,29 @@ def _anchor_phrases(geom: SceneGeom, by_cat: dict[str, list[int]], cats: list[st
                     out[i].append((3, f"the {cat} closest to {simple[a]}"))
                 if da[k] - m > others.max():
                     out[i].append((3, f"the {cat} farthest from {simple[a]}"))
-        for k, i in enumerate(members):
+        for i in members:
             s = supports[i]
             if s is None:
                 continue
             if s.kind == "object":
-                j = geom.index[s.ref]
+                j = geom.index[int(s.ref)]
                 if j not in simple:
                     continue
                 anchor = simple[j]
                 # every other member must be clearly off that object
-                near = [o for o in members if o != i and (geom.footprint_overlap[o, j] > 0 or geom.footprint_overlap[j, o] > 0)
-                        and abs(geom.lo[o, 2] - geom.hi[j, 2]) <= 2 * geom.th.support_gap]
+                near = [
+                    o
+                    for o in members
+                    if o != i
+                    and (geom.footprint_overlap[o, j] > 0 or geom.footprint_overlap[j, o] > 0)
+                    and abs(geom.lo[o, 2] - geom.hi[j, 2]) <= 2 * geom.th.support_gap
+                ]
             else:
-                anchor = surf_names[s.ref]
-                near = [o for o in members if o != i and (supports[o] is None or supports[o].ref == s.ref
-                                                          or supports[o].kind == "object")]
+                anchor = surf_names[str(s.ref)]
+                near = [
+                    o
+                    for o in members
+                    if o != i and ((so := supports[o]) is None or so.ref == s.ref or so.kind == "object")
+                ]
             if not near:
                 out[i].append((3, f"the {cat} on {anchor}"))

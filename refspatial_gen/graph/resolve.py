@@ -12,7 +12,9 @@ measured node attributes and stored distances).
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -20,9 +22,14 @@ from refspatial_gen.core.geometry import Box3D, box_distance
 from refspatial_gen.core.model import Frame, SceneGraph
 
 SUPERLATIVES = {  # word -> (feature, pick the largest?)
-    "tallest": ("height", True), "shortest": ("height", False), "biggest": ("volume", True),
-    "smallest": ("volume", False), "leftmost": ("img_x", False), "rightmost": ("img_x", True),
-    "nearest": ("near", False), "farthest": ("near", True),
+    "tallest": ("height", True),
+    "shortest": ("height", False),
+    "biggest": ("volume", True),
+    "smallest": ("volume", False),
+    "leftmost": ("img_x", False),
+    "rightmost": ("img_x", True),
+    "nearest": ("near", False),
+    "farthest": ("near", True),
 }
 ORDINALS = {"second": 2, "third": 3}
 _REL = re.compile(r"^(?P<base>.+?) (?P<rel>closest to|farthest from|on) (?P<anchor>the .+)$")
@@ -37,20 +44,25 @@ class _Scene:
     colours: list[str | None]
     feats: dict[str, np.ndarray]  # img_x, near, height, volume
     tol: dict[str, float]
-    surfaces: dict[str, tuple[float, np.ndarray]]  # name -> (top z, CCW polygon)
-    dist: callable
-    on: callable  # on(i, anchor) -> bool where anchor is ("obj", j) or ("surface", name)
+    surfaces: dict[str, tuple[float, Any]]  # name -> (top z, the surface box; None from a stored graph)
+    dist: Callable[[int, int], float]
+    on: Callable[[int, Any], bool]  # on(i, anchor) -> bool where anchor is ("obj", j) or ("surface", name)
 
 
 def _norm(cat: str) -> str:
     return cat.replace("_", " ").strip().lower()
 
 
-def _tolerances(th: dict) -> dict[str, float]:
-    return {"img_x": th["image_margin"] / 4, "near": th["depth_margin"] / 2,
-            "height_abs": th["height_margin_abs"] / 2, "height_rel": th["size_margin_rel"] / 2,
-            "volume_rel": th["volume_margin_rel"] / 2, "dist": th["anchor_distance_margin"] / 2,
-            "support_gap": th["support_gap"]}
+def _tolerances(th: dict[str, Any]) -> dict[str, float]:
+    return {
+        "img_x": th["image_margin"] / 4,
+        "near": th["depth_margin"] / 2,
+        "height_abs": th["height_margin_abs"] / 2,
+        "height_rel": th["size_margin_rel"] / 2,
+        "volume_rel": th["volume_margin_rel"] / 2,
+        "dist": th["anchor_distance_margin"] / 2,
+        "support_gap": th["support_gap"],
+    }
 
 
 def _from_frame(frame: Frame) -> _Scene:
@@ -75,9 +87,12 @@ def _from_frame(frame: Frame) -> _Scene:
             img_x.append((uv[0, 0] + 0.5) / cam.width)
             cols.append(None)
         near.append(cam.world_to_cam(o.box.corners())[:, 2].min())
-    feats = {"img_x": np.array(img_x), "near": np.array(near),
-             "height": np.array([b.aabb()[1][2] - b.aabb()[0][2] for b in boxes]),
-             "volume": np.array([float(np.prod(b.size)) for b in boxes])}
+    feats = {
+        "img_x": np.array(img_x),
+        "near": np.array(near),
+        "height": np.array([b.aabb()[1][2] - b.aabb()[0][2] for b in boxes]),
+        "volume": np.array([float(np.prod(b.size)) for b in boxes]),
+    }
     surfaces = {}
     for s in frame.surfaces:
         sb = Box3D(G @ s.box.center, s.box.size, G @ s.box.rotation)
@@ -86,7 +101,7 @@ def _from_frame(frame: Frame) -> _Scene:
     def dist(i: int, j: int) -> float:
         return box_distance(boxes[i], boxes[j], n=9)
 
-    def on(i: int, anchor) -> bool:
+    def on(i: int, anchor: Any) -> bool:
         bottom = boxes[i].aabb()[0][2]
         c = boxes[i].center
         if anchor[0] == "obj":
@@ -95,12 +110,23 @@ def _from_frame(frame: Frame) -> _Scene:
         else:
             top, sbox = surfaces[anchor[1]]
         probe = np.array([[c[0], c[1], sbox.center[2]]])
-        inside_xy = bool(np.all(np.abs(sbox.to_local(probe)[0, :2]) <= sbox.size[:2] / 2 + 1e-9)) if abs(sbox.rotation[2, 2]) > 0.99 \
+        inside_xy = (
+            bool(np.all(np.abs(sbox.to_local(probe)[0, :2]) <= sbox.size[:2] / 2 + 1e-9))
+            if abs(sbox.rotation[2, 2]) > 0.99
             else bool(sbox.contains(probe)[0])
+        )
         return abs(bottom - top) <= th["support_gap"] and inside_xy
 
-    return _Scene([o.id for o in frame.objects], [_norm(o.category) for o in frame.objects], cols, feats,
-                  _tolerances(th), surfaces, dist, on)
+    return _Scene(
+        [o.id for o in frame.objects],
+        [_norm(o.category) for o in frame.objects],
+        cols,
+        feats,
+        _tolerances(th),
+        surfaces,
+        dist,
+        on,
+    )
 
 
 def _from_graph(graph: SceneGraph) -> _Scene:
@@ -109,8 +135,12 @@ def _from_graph(graph: SceneGraph) -> _Scene:
     ids = [n.object_id for n in nodes]
     pos = {k: i for i, k in enumerate(ids)}
     a = [n.attributes for n in nodes]
-    feats = {"img_x": np.array([x["img_xy"][0] for x in a]), "near": np.array([x["near_depth"] for x in a]),
-             "height": np.array([x["height"] for x in a]), "volume": np.array([x["volume"] for x in a])}
+    feats = {
+        "img_x": np.array([x["img_xy"][0] for x in a]),
+        "near": np.array([x["near_depth"] for x in a]),
+        "height": np.array([x["height"] for x in a]),
+        "volume": np.array([x["volume"] for x in a]),
+    }
     d = {}
     for f in graph.facts:
         if f.relation == "distance":
@@ -118,15 +148,23 @@ def _from_graph(graph: SceneGraph) -> _Scene:
     by_name = {str(e.get("name") or f"the {sid}").lower(): sid for sid, e in graph.meta.get("surfaces", {}).items()}
     sup = {pos[n.object_id]: n.support for n in nodes}
 
-    def on(i: int, anchor) -> bool:
+    def on(i: int, anchor: Any) -> bool:
         """Direct support as stored in the graph (the builder's support test)."""
         s = sup[i]
         if anchor[0] == "obj":
             return s == f"obj:{ids[anchor[1]]}"
         return s is not None and s == by_name.get(anchor[1])
 
-    return _Scene(ids, [_norm(n.category) for n in nodes], [x.get("color") for x in a], feats, _tolerances(th),
-                  {name: (0.0, None) for name in by_name}, lambda i, j: d.get((i, j), np.inf), on)
+    return _Scene(
+        ids,
+        [_norm(n.category) for n in nodes],
+        [x.get("color") for x in a],
+        feats,
+        _tolerances(th),
+        {name: (0.0, None) for name in by_name},
+        lambda i, j: d.get((i, j), np.inf),
+        on,
+    )
 
 
 def _base(sc: _Scene, text: str) -> list[int] | None:
@@ -168,8 +206,7 @@ def _resolve(sc: _Scene, phrase: str) -> list[int]:
         return []
     body = p[4:]
     m = _REL.match(body)
-    if m and _base(sc, m["base"]) is not None:
-        members = _base(sc, m["base"])
+    if m and (members := _base(sc, m["base"])) is not None:
         anchor_text = m["anchor"]
         if m["rel"] == "on" and anchor_text in sc.surfaces:
             return [i for i in members if sc.on(i, ("surface", anchor_text))]
@@ -186,15 +223,15 @@ def _resolve(sc: _Scene, phrase: str) -> list[int]:
         target = d.min() if m["rel"] == "closest to" else d.max()
         return [members[k] for k in np.flatnonzero(_within(d, target, sc.tol["dist"]))]
     m = _ORD_SIDE.match(body)
-    if m and _base(sc, m["base"]) is not None:
-        return _superlative(sc, _base(sc, m["base"]), "img_x", m["side"] == "right", ORDINALS[m["ord"]])
+    if m and (base := _base(sc, m["base"])) is not None:
+        return _superlative(sc, base, "img_x", m["side"] == "right", ORDINALS[m["ord"]])
     m = _ORD_DEPTH.match(body)
-    if m and _base(sc, m["base"]) is not None:
-        return _superlative(sc, _base(sc, m["base"]), "near", m["dir"] == "farthest", ORDINALS[m["ord"]])
+    if m and (base := _base(sc, m["base"])) is not None:
+        return _superlative(sc, base, "near", m["dir"] == "farthest", ORDINALS[m["ord"]])
     head, _, rest = body.partition(" ")
-    if head in SUPERLATIVES and _base(sc, rest) is not None:
+    if head in SUPERLATIVES and (base := _base(sc, rest)) is not None:
         feat, largest = SUPERLATIVES[head]
-        return _superlative(sc, _base(sc, rest), feat, largest)
+        return _superlative(sc, base, feat, largest)
     members = _base(sc, body)
     return [] if members is None else members
 
@@ -205,7 +242,7 @@ def resolve_phrase(phrase: str, frame_or_graph: Frame | SceneGraph) -> list[int]
     return sorted(sc.ids[i] for i in _resolve(sc, phrase))
 
 
-def resolver(frame_or_graph: Frame | SceneGraph):
+def resolver(frame_or_graph: Frame | SceneGraph) -> Callable[[str], list[int]]:
     """A resolve function bound to one scene (measures the scene once; for checking many phrases)."""
     sc = _from_frame(frame_or_graph) if isinstance(frame_or_graph, Frame) else _from_graph(frame_or_graph)
     return lambda phrase: sorted(sc.ids[i] for i in _resolve(sc, phrase))

@@ -11,6 +11,7 @@ camera quantities use the frame's own camera.
 from __future__ import annotations
 
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 
@@ -102,7 +103,7 @@ class SceneGeom:
         self.th = th
         self.gravity = gravity
         self.world_ok = gravity.known
-        self.cache: dict = {}  # per-frame results of relation groups (matrices), filled lazily
+        self.cache: dict[str, Any] = {}  # per-frame results of relation groups (matrices), filled lazily
         cam = frame.camera
         self.W, self.H = cam.width, cam.height
         objs = frame.objects
@@ -162,7 +163,9 @@ class SceneGeom:
             self.mask_area[i] = len(xs)
             self.img_centroid[i] = ((xs.mean() + x0 + 0.5) / W, (ys.mean() + y0 + 0.5) / H)
             self.points[i] = valid_point(m, x0, y0, W, H)
-            self.colours[i], self.colour_how[i] = colour_word(mask_hsv_from_rgb(rgb[y0:y1, x0:x1], m), o.attributes.get("color"))
+            self.colours[i], self.colour_how[i] = colour_word(
+                mask_hsv_from_rgb(rgb[y0:y1, x0:x1], m), o.attributes.get("color")
+            )
             ys, xs = ys + y0, xs + x0
             d = depth[ys, xs]
             d = d[d > 0]
@@ -182,7 +185,9 @@ class SceneGeom:
         """(n, n) minimum surface-to-surface distance (exact for vertical prisms, sampled otherwise)."""
         n = self.n
         dxy = polygon_distances(self.footprints) if n else np.zeros((0, 0))
-        gz = np.maximum(0.0, np.maximum(self.lo[None, :, 2] - self.hi[:, None, 2], self.lo[:, None, 2] - self.hi[None, :, 2]))
+        gz = np.maximum(
+            0.0, np.maximum(self.lo[None, :, 2] - self.hi[:, None, 2], self.lo[:, None, 2] - self.hi[None, :, 2])
+        )
         d = np.sqrt(dxy**2 + gz**2)
         for i in np.flatnonzero(~self.upright):
             for j in range(n):
@@ -201,9 +206,13 @@ class SceneGeom:
         n = self.n
         t = (np.arange(6) + 0.5) / 6
         u, v = np.meshgrid(t, t, indexing="ij")
-        u, v = u.ravel(), v.ravel()
+        u, v = u.ravel(), v.ravel()  # type: ignore[assignment]
         f = self.footprints
-        pts = f[:, None, 0] + u[None, :, None] * (f[:, None, 1] - f[:, None, 0]) + v[None, :, None] * (f[:, None, 3] - f[:, None, 0])
+        pts = (
+            f[:, None, 0]
+            + u[None, :, None] * (f[:, None, 1] - f[:, None, 0])
+            + v[None, :, None] * (f[:, None, 3] - f[:, None, 0])
+        )
         inside = points_in_polygons(pts.reshape(-1, 2), f).reshape(n, n, len(u))  # (polygon j, object i, sample)
         out = inside.mean(axis=2).T.copy()
         np.fill_diagonal(out, 0.0)
@@ -213,8 +222,10 @@ class SceneGeom:
     @cached_property
     def surfaces(self) -> list[SupportSurface]:
         G = self.gravity.rotation
-        return [SupportSurface(s.id, s.kind, Box3D(G @ s.box.center, s.box.size, G @ s.box.rotation), s.object_id, s.name)
-                for s in sorted(self.frame.surfaces, key=lambda s: s.id)]
+        return [
+            SupportSurface(s.id, s.kind, Box3D(G @ s.box.center, s.box.size, G @ s.box.rotation), s.object_id, s.name)
+            for s in sorted(self.frame.surfaces, key=lambda s: s.id)
+        ]
 
     def camera_axes_horizontal(self) -> tuple[np.ndarray, np.ndarray] | None:
         """(right, forward) unit vectors of the camera projected on the ground plane, or None when the
@@ -236,8 +247,9 @@ class SceneGeom:
         return self.frame.camera.project_cam(np.asarray(points_g, float).reshape(-1, 3) @ R.T + t)
 
 
-def valid_point(mask: np.ndarray, x0: int = 0, y0: int = 0, width: int | None = None,
-                height: int | None = None) -> tuple[float, float] | None:
+def valid_point(
+    mask: np.ndarray, x0: int = 0, y0: int = 0, width: int | None = None, height: int | None = None
+) -> tuple[float, float] | None:
     """The object's normalised answer point (core.mask.answer_pixel), guaranteed to fall back inside the
     mask after denormalising. `mask` may be a crop whose top-left pixel is (x0, y0) of a W x H image."""
     H, W = (height or mask.shape[0]), (width or mask.shape[1])

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from refspatial_gen.graph.scene import SceneGeom, points_in_polygons, ccw
+from refspatial_gen.core.geometry import Box3D
+from refspatial_gen.graph.scene import SceneGeom, ccw, points_in_polygons
 
 
 @dataclass(frozen=True)
@@ -24,7 +25,7 @@ class Support:
 
     @property
     def label(self) -> str:
-        return self.ref if self.kind == "surface" else f"obj:{self.ref}"
+        return str(self.ref) if self.kind == "surface" else f"obj:{self.ref}"
 
 
 def _grid_in(fp: np.ndarray, k: int = 6) -> np.ndarray:
@@ -33,7 +34,7 @@ def _grid_in(fp: np.ndarray, k: int = 6) -> np.ndarray:
     return fp[0] + u.ravel()[:, None] * (fp[1] - fp[0]) + v.ravel()[:, None] * (fp[3] - fp[0])
 
 
-def surface_polygon(box) -> np.ndarray:
+def surface_polygon(box: Box3D) -> np.ndarray:
     """CCW xy outline of a surface slab's top face."""
     hx, hy = box.size[0] / 2, box.size[1] / 2
     local = np.array([[-hx, -hy, 0], [hx, -hy, 0], [hx, hy, 0], [-hx, hy, 0]])
@@ -86,8 +87,8 @@ def root_surfaces(geom: SceneGeom, supports: list[Support | None]) -> list[str |
         seen, s = set(), supports[i]
         while s is not None and s.kind == "object" and s.ref not in seen:
             seen.add(s.ref)
-            s = supports[geom.index[s.ref]]
-        out.append(s.ref if s is not None and s.kind == "surface" else None)
+            s = supports[geom.index[int(s.ref)]]
+        out.append(str(s.ref) if s is not None and s.kind == "surface" else None)
     return out
 
 

@@ -9,11 +9,14 @@ Public API:
 
 from __future__ import annotations
 
+from typing import Any
+
+from refspatial_gen.core.model import Sample
 from refspatial_gen.qa.config import QA_FIELDS, QAConfig, load_qa_config
 from refspatial_gen.qa.generate import generate_qa
 
 
-def verify_sample(sample):  # imported lazily: the verifier has its own code path
+def verify_sample(sample: Sample) -> list[dict[str, Any]]:  # imported lazily: the verifier has its own path
     from refspatial_gen.qa.verify import verify_sample as _v
 
     return _v(sample)

@@ -9,13 +9,15 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from refspatial_gen.core.model import Frame, SceneGraph
+from refspatial_gen.qa.config import QAConfig
 
 
-def default_config():
+def default_config() -> QAConfig:
     """The default recipe's qa section."""
     from refspatial_gen.qa.config import load_qa_config
     from refspatial_gen.yamlpos import load_yaml
@@ -37,8 +39,12 @@ def toy_graphs(n: int = 8, seed: int = 0) -> list[tuple[Frame, SceneGraph]]:
     return out
 
 
-def qa_throughput(graphs_and_frames: list[tuple[Frame, SceneGraph]] | None = None, seconds: float = 3.0,
-                  config=None, fresh_index: bool = True) -> dict:
+def qa_throughput(
+    graphs_and_frames: list[tuple[Frame, SceneGraph]] | None = None,
+    seconds: float = 3.0,
+    config: QAConfig | None = None,
+    fresh_index: bool = True,
+) -> dict[str, Any]:
     """QA pairs per second on one core: generate_qa over cached (frame, graph) pairs for `seconds` of CPU
     time. `fresh_index` rebuilds the per-sample lookup index every time (the cost a run pays)."""
     from refspatial_gen.qa.generate import generate_qa, scene_index
@@ -58,16 +64,24 @@ def qa_throughput(graphs_and_frames: list[tuple[Frame, SceneGraph]] | None = Non
         n_samples += 1
         k += 1
     cpu = time.process_time() - t0
-    return {"qa_pairs": n_qa, "samples": n_samples, "cpu_seconds": round(cpu, 3),
-            "wall_seconds": round(time.perf_counter() - w0, 3),
-            "qa_per_second_per_core": round(n_qa / cpu, 1) if cpu > 0 else 0.0,
-            "qa_per_sample": round(n_qa / max(n_samples, 1), 2), "fresh_index": fresh_index,
-            "target_qa_per_second_per_core": 5000}
+    return {
+        "qa_pairs": n_qa,
+        "samples": n_samples,
+        "cpu_seconds": round(cpu, 3),
+        "wall_seconds": round(time.perf_counter() - w0, 3),
+        "qa_per_second_per_core": round(n_qa / cpu, 1) if cpu > 0 else 0.0,
+        "qa_per_sample": round(n_qa / max(n_samples, 1), 2),
+        "fresh_index": fresh_index,
+        "target_qa_per_second_per_core": 5000,
+    }
 
 
 if __name__ == "__main__":
     import json
 
     pairs = toy_graphs()
-    print(json.dumps({"cold_index": qa_throughput(pairs), "warm_index": qa_throughput(pairs, fresh_index=False)},
-                     indent=1))
+    print(
+        json.dumps(
+            {"cold_index": qa_throughput(pairs), "warm_index": qa_throughput(pairs, fresh_index=False)}, indent=1
+        )
+    )

@@ -35,17 +35,36 @@ def _check_steps(v: Any) -> str | None:
 
 QA_FIELDS: dict[str, Field] = {
     "families": Field(dict, required=True, doc="family name -> {weight, templates: [files relative to the recipe]}"),
-    "max_per_sample": Field(int, default=MAX_QA_PER_SAMPLE, min=1, max=MAX_QA_PER_SAMPLE,
-                            doc="QA pairs per sample (a conversation), at most 15"),
+    "max_per_sample": Field(
+        int,
+        default=MAX_QA_PER_SAMPLE,
+        min=1,
+        max=MAX_QA_PER_SAMPLE,
+        doc="QA pairs per sample (a conversation), at most 15",
+    ),
     "attempts": Field(int, default=60, min=1, max=10000, doc="template attempts per sample before giving up"),
     "budget": Field(int, default=400, min=10, max=1000000, doc="step executions per template attempt (search budget)"),
-    "steps": Field(dict, default=None, check=_check_steps,
-                   doc="step-count mix: a template's weight is multiplied by the weight of its step count"),
-    "point_slack": Field(int, default=1, min=0, max=100,
-                         doc="balance: an answer point may make its image quadrant lead the rarest one by at most this"),
+    "steps": Field(
+        dict,
+        default=None,
+        check=_check_steps,
+        doc="step-count mix: a template's weight is multiplied by the weight of its step count",
+    ),
+    "point_slack": Field(
+        int,
+        default=1,
+        min=0,
+        max=100,
+        doc="balance: an answer point may make its image quadrant lead the rarest one by at most this",
+    ),
     "multiview_pairs": Field(int, default=2, min=0, max=15, doc="multi-view questions per multi-frame sample"),
-    "point_depth": Field(int, default=0, min=0, max=MAX_QA_PER_SAMPLE,
-                         doc="built-in point/depth questions (qa/pointdepth.py) added per sample; 0 = off"),
+    "point_depth": Field(
+        int,
+        default=0,
+        min=0,
+        max=MAX_QA_PER_SAMPLE,
+        doc="built-in point/depth questions (qa/pointdepth.py) added per sample; 0 = off",
+    ),
 }
 FAMILY_FIELDS: dict[str, Field] = {
     "weight": Field(float, default=1.0, min=0.0),
@@ -79,8 +98,9 @@ class QAConfig:
         return [t for f in self.families for t in f.templates]
 
 
-def load_qa_config(section: dict | None, recipe_file: str, lines: dict[tuple, int],
-                   path: tuple = ("qa",)) -> QAConfig:
+def load_qa_config(
+    section: dict[str, Any] | None, recipe_file: str, lines: dict[tuple[Any, ...], int], path: tuple[Any, ...] = ("qa",)
+) -> QAConfig:
     """Validate the `qa:` section and compile every template file it names (once). Raises RecipeErrors."""
     errors: list[RecipeError] = []
     file = str(recipe_file)
@@ -100,7 +120,7 @@ def load_qa_config(section: dict | None, recipe_file: str, lines: dict[tuple, in
             if not isinstance(rel, str) or not rel:
                 errors.append(RecipeError(file, line_of(lines, tp), f"template path must be a string, got {rel!r}"))
                 continue
-            tfile = (Path(file).parent / rel)
+            tfile = Path(file).parent / rel
             if not tfile.is_file():
                 errors.append(RecipeError(file, line_of(lines, tp), f"template file not found: {rel}"))
                 continue
@@ -126,8 +146,17 @@ def load_qa_config(section: dict | None, recipe_file: str, lines: dict[tuple, in
     if not any(f.weight > 0 and f.templates for f in fams):
         raise RecipeError(file, line_of(lines, path + ("families",)), "every family has weight 0")
     mix = {int(k): float(v) for k, v in (sec["steps"] or {}).items()}
-    return QAConfig(fams, sec["max_per_sample"], sec["attempts"], sec["budget"], mix, sec["point_slack"],
-                    sec["multiview_pairs"], sorted(files), sec["point_depth"])
+    return QAConfig(
+        fams,
+        sec["max_per_sample"],
+        sec["attempts"],
+        sec["budget"],
+        mix,
+        sec["point_slack"],
+        sec["multiview_pairs"],
+        sorted(files),
+        sec["point_depth"],
+    )
 
 
 def _copy_for_family(t: Template, family: str) -> Template:

@@ -26,17 +26,31 @@ MIN_TURN = math.radians(5.0)  # rotations smaller than this have no clear direct
 MIN_DEPTH, MAX_DEPTH = 0.1, 20.0
 KINDS = ("depth", "choice", "rotation_horizontal", "rotation_vertical")
 
-DEPTH_TEXTS = ("How far from the camera is the point {p}?",
-               "What is the depth of the point {p} from the camera?",
-               "How far is the point {p} from the camera, in depth?")
-CHOICE_TEXTS = {"front": ("Which point is closer to the camera: {a} or {b}?",
-                          "Which of these points is nearer to the camera: {a} or {b}?"),
-                "behind": ("Which point is farther from the camera: {a} or {b}?",
-                           "Which of these points is farther away from the camera: {a} or {b}?")}
-TURN_TEXTS = {"horizontal": ("How should the camera rotate horizontally to face the point {p}?",
-                             "How far must the camera turn left or right to face the point {p}?"),
-              "vertical": ("Starting from a level view, how should the camera tilt up or down to face the point {p}?",
-                           "From a level view, how far must the camera rotate vertically to face the point {p}?")}
+DEPTH_TEXTS = (
+    "How far from the camera is the point {p}?",
+    "What is the depth of the point {p} from the camera?",
+    "How far is the point {p} from the camera, in depth?",
+)
+CHOICE_TEXTS = {
+    "front": (
+        "Which point is closer to the camera: {a} or {b}?",
+        "Which of these points is nearer to the camera: {a} or {b}?",
+    ),
+    "behind": (
+        "Which point is farther from the camera: {a} or {b}?",
+        "Which of these points is farther away from the camera: {a} or {b}?",
+    ),
+}
+TURN_TEXTS = {
+    "horizontal": (
+        "How should the camera rotate horizontally to face the point {p}?",
+        "How far must the camera turn left or right to face the point {p}?",
+    ),
+    "vertical": (
+        "Starting from a level view, how should the camera tilt up or down to face the point {p}?",
+        "From a level view, how far must the camera rotate vertically to face the point {p}?",
+    ),
+}
 
 
 def valid_pixels(frame: Frame) -> np.ndarray:
@@ -50,7 +64,7 @@ def valid_pixels(frame: Frame) -> np.ndarray:
     lo = cv2.erode(d, k, borderType=cv2.BORDER_REPLICATE)
     ok = (lo >= MIN_DEPTH) & (hi <= MAX_DEPTH) & (hi - lo <= SMOOTH_TOL)
     bx, by = max(8, int(0.05 * w)), max(8, int(0.05 * h))
-    ok[:by], ok[h - by:], ok[:, :bx], ok[:, w - bx:] = False, False, False, False
+    ok[:by], ok[h - by :], ok[:, :bx], ok[:, w - bx :] = False, False, False, False
     vs, us = np.nonzero(ok)
     return np.stack([us, vs], axis=1)
 
@@ -92,10 +106,10 @@ class _Pool:
         q = (2 * pix[:, 0] >= W).astype(int) + 2 * (2 * pix[:, 1] >= H).astype(int)
         self.parts = [pix[q == k] for k in range(4)]
         self.counts = [0, 0, 0, 0]
-        self.used: set = set()
+        self.used: set[Any] = set()
 
     def pick(self, rng: np.random.Generator, n: int) -> list[tuple[tuple[float, float], tuple[int, int]]]:
-        out: list = []
+        out: list[Any] = []
         for _ in range(8 * n):
             if len(out) >= n:
                 break
@@ -103,8 +117,11 @@ class _Pool:
             if not live:
                 break
             low = min(self.counts[k] for k in live)
-            ks = [k for k in live if self.counts[k] == low and all(k != o[2] for o in out)] or \
-                [k for k in live if all(k != o[2] for o in out)] or live
+            ks = (
+                [k for k in live if self.counts[k] == low and all(k != o[2] for o in out)]
+                or [k for k in live if all(k != o[2] for o in out)]
+                or live
+            )
             k = ks[int(rng.integers(len(ks)))]
             s = _snap(self.frame, self.parts[k][int(rng.integers(len(self.parts[k])))])
             if s is None or s[1] in self.used or any(s[1] == o[1] for o in out):
@@ -118,8 +135,9 @@ class _Pool:
         self.counts[int(2 * uv[0] >= W) + 2 * int(2 * uv[1] >= H)] += 1
 
 
-def point_depth_qa(frames: list[Frame], rng: np.random.Generator, n: int, start: int = 0,
-                   kinds: tuple[str, ...] = KINDS) -> list[QAPair]:
+def point_depth_qa(
+    frames: list[Frame], rng: np.random.Generator, n: int, start: int = 0, kinds: tuple[str, ...] = KINDS
+) -> list[QAPair]:
     """Up to `n` checked point/depth QA pairs over the given frames; ids continue from `start`."""
     out: list[QAPair] = []
     if n <= 0 or not frames:
@@ -145,42 +163,83 @@ def point_depth_qa(frames: list[Frame], rng: np.random.Generator, n: int, start:
 
 
 def _make(frame: Frame, kind: str, pool: _Pool, rng: np.random.Generator, qa_id: str) -> QAPair | None:
-    d = frame.depth
     size = (frame.camera.width, frame.camera.height)
-    base: dict[str, Any] = dict(qa_id=qa_id, family=FAMILY, steps=1, frame_ids=[frame.frame_id], image_size=size,
-                                checks=["smooth_depth", "outside_margin"])
+    base: dict[str, Any] = dict(
+        qa_id=qa_id,
+        family=FAMILY,
+        steps=1,
+        frame_ids=[frame.frame_id],
+        image_size=size,
+        checks=["smooth_depth", "outside_margin"],
+    )
     if kind == "depth":
-        got = pool.pick(rng, 1)
-        if not got:
-            return None
-        p, (u, v) = got[0]
-        z = float(d[v, u])
-        pool.take(p, (u, v))
-        q = DEPTH_TEXTS[int(rng.integers(len(DEPTH_TEXTS)))].format(p=fmt_points([p]))
-        struct = {"kind": "number", "value": round(z, 6), "unit": "m", "quantity": "depth",
-                  "query_points": [list(p)]}
-        return QAPair(template=f"{FAMILY}/depth", question=q, answer=fmt_length(z), answer_struct=struct,
-                      relations=["depth"], **base)
+        return _make_depth(frame, pool, rng, base)
     if kind == "choice":
-        got = pool.pick(rng, 2)
-        if len(got) < 2:
-            return None
-        (pa, (ua, va)), (pb, (ub, vb)) = got
-        za, zb = float(d[va, ua]), float(d[vb, ub])
-        if abs(za - zb) <= max(CHOICE_MARGIN_ABS, CHOICE_MARGIN_REL * max(za, zb)):
-            return None
-        rel = "front" if rng.integers(2) == 0 else "behind"
-        correct = int(np.argmin([za, zb]) if rel == "front" else np.argmax([za, zb]))
-        pool.take(pa, (ua, va))
-        pool.take(pb, (ub, vb))
-        texts = [fmt_points([pa]), fmt_points([pb])]
-        q = CHOICE_TEXTS[rel][int(rng.integers(len(CHOICE_TEXTS[rel])))].format(
-            a=f"({LETTERS[0]}) {texts[0]}", b=f"({LETTERS[1]}) {texts[1]}")
-        answer = f"({LETTERS[correct]})" if rng.integers(2) == 0 else f"({LETTERS[correct]}) {texts[correct]}"
-        struct = {"kind": "choice", "options": texts, "letter": LETTERS[correct], "answer": texts[correct],
-                  "relation": rel, "query_points": [list(pa), list(pb)], "depths": [round(za, 6), round(zb, 6)]}
-        return QAPair(template=f"{FAMILY}/{rel}", question=q, answer=answer, answer_struct=struct,
-                      relations=["depth", rel], **base)
+        return _make_choice(frame, pool, rng, base)
+    return _make_turn(frame, kind, pool, rng, base)
+
+
+def _make_depth(frame: Frame, pool: _Pool, rng: np.random.Generator, base: dict[str, Any]) -> QAPair | None:
+    """The metric depth at a query point."""
+    d = frame.depth
+    got = pool.pick(rng, 1)
+    if not got:
+        return None
+    p, (u, v) = got[0]
+    z = float(d[v, u])
+    pool.take(p, (u, v))
+    q = DEPTH_TEXTS[int(rng.integers(len(DEPTH_TEXTS)))].format(p=fmt_points([p]))
+    struct = {"kind": "number", "value": round(z, 6), "unit": "m", "quantity": "depth", "query_points": [list(p)]}
+    return QAPair(
+        template=f"{FAMILY}/depth",
+        question=q,
+        answer=fmt_length(z),
+        answer_struct=struct,
+        relations=["depth"],
+        **base,
+    )
+
+
+def _make_choice(frame: Frame, pool: _Pool, rng: np.random.Generator, base: dict[str, Any]) -> QAPair | None:
+    """Which of two query points is nearer (farther): decided only outside the depth margin."""
+    d = frame.depth
+    got = pool.pick(rng, 2)
+    if len(got) < 2:
+        return None
+    (pa, (ua, va)), (pb, (ub, vb)) = got
+    za, zb = float(d[va, ua]), float(d[vb, ub])
+    if abs(za - zb) <= max(CHOICE_MARGIN_ABS, CHOICE_MARGIN_REL * max(za, zb)):
+        return None
+    rel = "front" if rng.integers(2) == 0 else "behind"
+    correct = int(np.argmin([za, zb]) if rel == "front" else np.argmax([za, zb]))
+    pool.take(pa, (ua, va))
+    pool.take(pb, (ub, vb))
+    texts = [fmt_points([pa]), fmt_points([pb])]
+    q = CHOICE_TEXTS[rel][int(rng.integers(len(CHOICE_TEXTS[rel])))].format(
+        a=f"({LETTERS[0]}) {texts[0]}", b=f"({LETTERS[1]}) {texts[1]}"
+    )
+    answer = f"({LETTERS[correct]})" if rng.integers(2) == 0 else f"({LETTERS[correct]}) {texts[correct]}"
+    struct = {
+        "kind": "choice",
+        "options": texts,
+        "letter": LETTERS[correct],
+        "answer": texts[correct],
+        "relation": rel,
+        "query_points": [list(pa), list(pb)],
+        "depths": [round(za, 6), round(zb, 6)],
+    }
+    return QAPair(
+        template=f"{FAMILY}/{rel}",
+        question=q,
+        answer=answer,
+        answer_struct=struct,
+        relations=["depth", rel],
+        **base,
+    )
+
+
+def _make_turn(frame: Frame, kind: str, pool: _Pool, rng: np.random.Generator, base: dict[str, Any]) -> QAPair | None:
+    """The camera turn to face a query point (retried for a point outside the no-turn margin)."""
     axis = kind.split("_")[1]
     for _ in range(6):
         got = pool.pick(rng, 1)
@@ -194,8 +253,13 @@ def _make(frame: Frame, kind: str, pool: _Pool, rng: np.random.Generator, qa_id:
             continue
         pool.take(p, (u, v))
         q = TURN_TEXTS[axis][int(rng.integers(len(TURN_TEXTS[axis])))].format(p=fmt_points([p]))
-        struct = {"kind": "number", "value": round(a, 6), "unit": "rad", "quantity": kind,
-                  "query_points": [list(p)]}
-        return QAPair(template=f"{FAMILY}/{kind}", question=q, answer=fmt_turn(a, axis), answer_struct=struct,
-                      relations=[kind], **base)
+        struct = {"kind": "number", "value": round(a, 6), "unit": "rad", "quantity": kind, "query_points": [list(p)]}
+        return QAPair(
+            template=f"{FAMILY}/{kind}",
+            question=q,
+            answer=fmt_turn(a, axis),
+            answer_struct=struct,
+            relations=[kind],
+            **base,
+        )
     return None

@@ -7,6 +7,7 @@ verifier, which parses them back; keeping every format in one place keeps them c
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from refspatial_gen.core.model import KeyStep
 
@@ -65,5 +66,5 @@ def fmt_trace(key_steps: list[KeyStep], answer: str) -> str:
     return "<think>" + "\n".join(trace_lines(key_steps)) + "</think><answer>" + answer + "</answer>"
 
 
-def round_key(values) -> list[float]:
+def round_key(values: Any) -> list[float]:
     return [round(float(v), 3) for v in values]

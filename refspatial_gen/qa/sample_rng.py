@@ -11,6 +11,8 @@ are built on it here, not on `random.shuffle`/`sample`, whose algorithms may cha
 from __future__ import annotations
 
 import random
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -22,7 +24,7 @@ class SampleRng:
     __slots__ = ("random",)
 
     def __init__(self, rng: np.random.Generator) -> None:
-        self.random = random.Random(int(rng.integers(2 ** 63))).random
+        self.random = random.Random(int(rng.integers(2**63))).random
 
     def integers(self, n: int) -> int:
         """Uniform in [0, n) (53-bit float scaled: bias below 1e-15 for the small n used here)."""
@@ -32,7 +34,7 @@ class SampleRng:
         """A uniformly random order of range(n)."""
         return self.shuffled(range(n))
 
-    def shuffled(self, items) -> list:
+    def shuffled(self, items: Sequence[Any]) -> list[Any]:
         """A new list of `items` in a uniformly random order (Fisher-Yates): the same draws and the same order
         as [items[k] for k in permutation(len(items))]."""
         p = list(items)

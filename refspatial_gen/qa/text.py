@@ -9,10 +9,9 @@ generation; anything with integers(n) and random()).
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable, Union
-
-import numpy as np
+from typing import Any
 
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)?$")
 
@@ -33,17 +32,17 @@ class Slot:
 
 @dataclass(frozen=True)
 class Alt:
-    options: tuple["Seq", ...]
+    options: tuple[Seq, ...]
 
 
 @dataclass(frozen=True)
 class Opt:
-    body: "Seq"
+    body: Seq
 
 
 @dataclass(frozen=True)
 class Seq:
-    parts: tuple[Union[Lit, Slot, Alt, Opt], ...]
+    parts: tuple[Lit | Slot | Alt | Opt, ...]
 
 
 def parse(text: str) -> Seq:
@@ -55,7 +54,7 @@ def parse(text: str) -> Seq:
 
 
 def _parse_seq(text: str, pos: int, closers: str) -> tuple[Seq, int]:
-    parts: list = []
+    parts: list[Any] = []
     buf: list[str] = []
     while pos < len(text):
         ch = text[pos]
@@ -91,7 +90,7 @@ def _parse_seq(text: str, pos: int, closers: str) -> tuple[Seq, int]:
     return Seq(tuple(parts)), pos
 
 
-def _parse_brace(text: str, pos: int) -> tuple[Union[Slot, Alt], int]:
+def _parse_brace(text: str, pos: int) -> tuple[Slot | Alt, int]:
     start = pos
     options: list[Seq] = []
     while True:
@@ -105,14 +104,14 @@ def _parse_brace(text: str, pos: int) -> tuple[Union[Slot, Alt], int]:
         pos += 1  # "}"
         break
     if len(options) == 1:
-        raw = text[start:pos - 1].strip()
+        raw = text[start : pos - 1].strip()
         if not _IDENT.match(raw):
             raise TextSyntaxError(f"placeholder {{{raw}}} at column {start} is not a name (use {{a|b}} for synonyms)")
         return Slot(raw), pos
     return Alt(tuple(options)), pos
 
 
-_PLACEHOLDERS: dict[int, tuple["Seq", frozenset]] = {}
+_PLACEHOLDERS: dict[int, tuple[Seq, frozenset[Any]]] = {}
 
 
 def placeholders(seq: Seq) -> frozenset[str]:
@@ -140,8 +139,7 @@ def _placeholders(seq: Seq) -> set[str]:
     return out
 
 
-def render(seq: Seq, values: Callable[[str], str], rng: np.random.Generator, p_optional: float = 0.5,
-           sentence: bool = True) -> str:
+def render(seq: Seq, values: Callable[[str], str], rng: Any, p_optional: float = 0.5, sentence: bool = True) -> str:
     """Render with synonyms and optional parts drawn from `rng`; whitespace tidied, and the first letter
     capitalised when `sentence` (not for phrases inserted into a sentence)."""
     parts = seq.parts
@@ -166,14 +164,14 @@ def _tidy_literal(text: str) -> str:
 
 # compiled parts: (0, text) literal, (1, name) slot, (2, options) synonyms, (3, body) optional part, with
 # synonyms and optional parts that are plain words flattened to (4, texts) and (5, text): no recursion
-_FLAT: dict[int, tuple[Seq, tuple]] = {}
+_FLAT: dict[int, tuple[Seq, tuple[Any, ...]]] = {}
 
 
-def _flat(seq: Seq) -> tuple:
+def _flat(seq: Seq) -> tuple[Any, ...]:
     hit = _FLAT.get(id(seq))
     if hit is not None and hit[0] is seq:
         return hit[1]
-    ops: list[tuple] = []
+    ops: list[tuple[Any, ...]] = []
     for p in seq.parts:
         if p.__class__ is Lit:
             ops.append((0, p.text))
@@ -181,13 +179,13 @@ def _flat(seq: Seq) -> tuple:
             ops.append((1, p.name))
         elif p.__class__ is Alt:
             if all(len(o.parts) == 1 and o.parts[0].__class__ is Lit for o in p.options):
-                ops.append((4, tuple(o.parts[0].text for o in p.options)))
+                ops.append((4, tuple(o.parts[0].text for o in p.options)))  # type: ignore[union-attr]
             else:
                 ops.append((2, p.options))
-        elif len(p.body.parts) == 1 and p.body.parts[0].__class__ is Lit:
-            ops.append((5, p.body.parts[0].text))
+        elif len(p.body.parts) == 1 and p.body.parts[0].__class__ is Lit:  # type: ignore[union-attr]
+            ops.append((5, p.body.parts[0].text))  # type: ignore[union-attr]
         else:
-            ops.append((3, p.body))
+            ops.append((3, p.body))  # type: ignore[union-attr]
     if len(_FLAT) > 100_000:
         _FLAT.clear()
     out = tuple(ops)
@@ -195,7 +193,7 @@ def _flat(seq: Seq) -> tuple:
     return out
 
 
-def _render(seq: Seq, values, rng, p_opt, out: list[str]) -> None:
+def _render(seq: Seq, values: Callable[[str], str], rng: Any, p_opt: float, out: list[str]) -> None:
     """Append the rendered parts; draws from rng in part order (one integer per synonym group, one float per
     optional part), the same draws whatever the parts contain."""
     for kind, v in _flat(seq):
@@ -218,7 +216,7 @@ _SPACE_PUNCT = re.compile(r"\s+([,.?!;:])")
 _SPACE_BEFORE_PUNCT = (" ,", " .", " ?", " !", " ;", " :")
 
 
-def _group1(m: re.Match) -> str:
+def _group1(m: re.Match[str]) -> str:
     return m.group(1)
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import re
+from typing import Any
 
 import numpy as np
 
@@ -21,11 +22,11 @@ _POINT = re.compile(r"\[\((\d\.\d{3}), (\d\.\d{3})\)\]")
 _NUM = re.compile(r"(\d+(?:\.\d+)?) (centimeters?|meters|degrees)")
 
 
-def _pixel(frame: Frame, p) -> tuple[int, int]:
+def _pixel(frame: Frame, p: Any) -> tuple[int, int]:
     return denormalise_point(float(p[0]), float(p[1]), frame.camera.width, frame.camera.height)
 
 
-def _depth(frame: Frame, p) -> float:
+def _depth(frame: Frame, p: Any) -> float:
     u, v = _pixel(frame, p)
     z = float(frame.depth[v, u])
     if not (math.isfinite(z) and z > 0):
@@ -46,7 +47,7 @@ def _stated(answer: str) -> float | None:
     return x
 
 
-def _turn(frame: Frame, p, axis: str) -> float:
+def _turn(frame: Frame, p: Any, axis: str) -> float:
     """Camera rotation to face the ray through the point: atan2(x, z); vertical in the gravity-levelled frame."""
     cam = frame.camera
     u, v = _pixel(frame, p)
@@ -106,8 +107,10 @@ def verify_point_depth(qa: QAPair, frame: Frame) -> list[str]:
             want = "AB"[int(za > zb)] if rel == "front" else "AB"[int(za < zb)]
             m = re.match(r"^\(([AB])\)", qa.answer)
             if s.get("letter") != want or m is None or m.group(1) != want:
-                out.append(f"answer {qa.answer!r} (letter {s.get('letter')}) but depths {za:.3f}, {zb:.3f} m "
-                           f"give ({want}) for {rel}")
+                out.append(
+                    f"answer {qa.answer!r} (letter {s.get('letter')}) but depths {za:.3f}, {zb:.3f} m "
+                    f"give ({want}) for {rel}"
+                )
             word = "closer" if rel == "front" else "farther"
             if word not in qa.question and ("nearer" if rel == "front" else "farther") not in qa.question:
                 out.append(f"question does not ask which point is {word}")

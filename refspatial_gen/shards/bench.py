@@ -36,7 +36,7 @@ def _time(fn, repeats: int) -> tuple[float, int]:
 def make_toy_shards(out: Path, samples: int = 48, width: int = 640, height: int = 480, per_shard: int = 16) -> Path:
     """Shards of toy samples at the simulated source's resolution (for a bench with no run output)."""
     from refspatial_gen.shards import ShardWriter, write_index
-    from refspatial_gen.shards.testing import make_sample
+    from refspatial_gen.sources.toy_samples import make_sample
 
     rng = np.random.default_rng(0)
     infos = []

@@ -7,12 +7,12 @@ the reason, and goes on.
 
 from __future__ import annotations
 
-import importlib
 from typing import Any, Protocol
 
 import numpy as np
 
 from refspatial_gen.core.model import Frame
+from refspatial_gen.core.registry import Registry
 
 
 class SceneSource(Protocol):
@@ -30,24 +30,20 @@ class SceneSource(Protocol):
 
 
 # name -> "module:attribute" (imported lazily so heavy dependencies load only when used)
-_SOURCES: dict[str, str] = {
-    "toy": "refspatial_gen.sources.toy:ToySource",
-    "sim": "refspatial_gen.sources.sim:SimSource",
-    "image": "refspatial_gen.sources.image:ImageSource",
-    "scan": "refspatial_gen.sources.scan:ScanSource",
-}
+SOURCES: Registry[type] = Registry("source")
+SOURCES.add("toy", "refspatial_gen.sources.toy:ToySource")
+SOURCES.add("sim", "refspatial_gen.sources.sim:SimSource")
+SOURCES.add("image", "refspatial_gen.sources.image:ImageSource")
+SOURCES.add("scan", "refspatial_gen.sources.scan:ScanSource")
 
 
 def register_source(name: str, target: str) -> None:
-    _SOURCES[name] = target
+    SOURCES.add(name, target, replace=True)
 
 
 def source_names() -> list[str]:
-    return sorted(_SOURCES)
+    return sorted(SOURCES.names())
 
 
 def get_source(name: str) -> SceneSource:
-    if name not in _SOURCES:
-        raise KeyError(f"unknown source {name!r} (known: {', '.join(source_names())})")
-    mod, attr = _SOURCES[name].split(":")
-    return getattr(importlib.import_module(mod), attr)()
+    return SOURCES.get(name)()  # type: ignore[no-any-return]

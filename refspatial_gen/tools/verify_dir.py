@@ -56,6 +56,11 @@ def _iter_trusted(d: str | Path, skip: set[str], problems: list[dict]):
             problems.append({"file": str(p), "problem": "unreadable", "detail": e.reason})
             continue
         if (n, q) != (row.get("samples"), row.get("qa_pairs")):
-            problems.append({"file": str(p), "problem": "count_mismatch",
-                             "detail": f"{n} samples / {q} QA pairs read, index.json says "
-                                       f"{row.get('samples')} / {row.get('qa_pairs')}"})
+            problems.append(
+                {
+                    "file": str(p),
+                    "problem": "count_mismatch",
+                    "detail": f"{n} samples / {q} QA pairs read, index.json says "
+                    f"{row.get('samples')} / {row.get('qa_pairs')}",
+                }
+            )

@@ -2,11 +2,17 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import numpy as np
 
 from refspatial_gen.core.model import RelationFact
+from refspatial_gen.graph.scene import SceneGeom
 
 TRUE, FALSE, UNDECIDED = 1, 0, -1
+# (value, codes, margin) matrices of a pair relation over object positions
+Matrices = tuple[Any, Any, Any]
 
 
 def decide_matrix(v: np.ndarray, margin: np.ndarray | float) -> np.ndarray:
@@ -29,7 +35,7 @@ def holds_of(code: int) -> bool | None:
     return None if code == UNDECIDED else bool(code == TRUE)
 
 
-def fact(rel: str, args: tuple, code: int, value: float, margin: float) -> RelationFact:
+def fact(rel: str, args: tuple[Any, ...], code: int, value: float, margin: float) -> RelationFact:
     return RelationFact(rel, tuple(args), holds_of(int(code)), float(value), float(margin))
 
 
@@ -39,8 +45,14 @@ def ordered_pairs_by_id(ids: np.ndarray) -> list[tuple[int, int]]:
     return [(int(order[a]), int(order[b])) for a in range(len(order)) for b in range(a + 1, len(order))]
 
 
-def pair_facts(rel: str, geom, value: np.ndarray, codes: np.ndarray, margin: np.ndarray | float,
-               only: set[int] | None = None) -> list[RelationFact]:
+def pair_facts(
+    rel: str,
+    geom: SceneGeom,
+    value: np.ndarray,
+    codes: np.ndarray,
+    margin: np.ndarray | float,
+    only: set[int] | None = None,
+) -> list[RelationFact]:
     """One fact per unordered pair (lower id first). `only`: keep these codes (sparse storage)."""
     m = np.broadcast_to(np.asarray(margin, float), value.shape)
     out = []
@@ -52,24 +64,26 @@ def pair_facts(rel: str, geom, value: np.ndarray, codes: np.ndarray, margin: np.
     return out
 
 
-def pos(geom, object_id) -> int:
+def pos(geom: SceneGeom, object_id: Any) -> int:
     try:
         return geom.index[int(object_id)]
     except (KeyError, TypeError, ValueError):
         raise KeyError(f"frame {geom.frame.frame_id} has no object {object_id!r}") from None
 
 
-def cached(geom, key: str, fn):
+def cached(geom: SceneGeom, key: str, fn: Callable[[SceneGeom], Any]) -> Any:
     if key not in geom.cache:
         geom.cache[key] = fn(geom)
     return geom.cache[key]
 
 
-def pair_evaluator(matrices, canonical: str, mirror: str | None = None):
+def pair_evaluator(
+    matrices: Callable[[SceneGeom], Matrices], canonical: str, mirror: str | None = None
+) -> Callable[..., RelationFact]:
     """evaluate(geom, a, b) for a pair relation whose matrices(geom) -> (value, codes, margin).
     With `mirror` set, evaluates the mirror relation: mirror(a, b) = canonical(b, a)."""
 
-    def evaluate(geom, a, b) -> RelationFact:
+    def evaluate(geom: SceneGeom, a: Any, b: Any) -> RelationFact:
         i, j = pos(geom, a), pos(geom, b)
         if mirror:
             i, j = j, i

@@ -6,23 +6,43 @@ and the bowl" must pick out one cup; when two qualify the question is not asked 
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from refspatial_gen.core.geometry import inside_fraction
 from refspatial_gen.core.model import RelationFact
-from refspatial_gen.graph.relations.base import Relation, register
-from refspatial_gen.graph.relations.common import FALSE, TRUE, UNDECIDED, band_matrix, cached, fact, pos
+from refspatial_gen.graph.relations.base import Cell, Relation, register
+from refspatial_gen.graph.relations.common import (
+    FALSE,
+    TRUE,
+    UNDECIDED,
+    Matrices,
+    band_matrix,
+    cached,
+    fact,
+    holds_of,
+    pos,
+)
+from refspatial_gen.graph.relations.lookup import false_absent, sparse_cell, sparse_table
+from refspatial_gen.graph.scene import SceneGeom
+
+if TYPE_CHECKING:
+    from refspatial_gen.graph.tables import RelationTables
 
 G = ("gravity",)
 MIN_BETWEEN_SPAN = 0.05  # m; anchors closer than this span no "between" region
 
 
-def _inside(geom):
-    def f(g):
+def _inside(geom: SceneGeom) -> Matrices:
+    def f(g: SceneGeom) -> Matrices:
         n = g.n
         frac = np.zeros((n, n))
         # only pairs whose boxes overlap can have volume inside one another
-        overlap = np.all(g.lo[:, None, :] < g.hi[None, :, :], axis=2) & np.all(g.lo[None, :, :] < g.hi[:, None, :], axis=2)
+        overlap = np.all(g.lo[:, None, :] < g.hi[None, :, :], axis=2) & np.all(
+            g.lo[None, :, :] < g.hi[:, None, :], axis=2
+        )
         for i, j in zip(*np.nonzero(overlap)):
             if i != j:
                 frac[i, j] = inside_fraction(g.boxes[i], g.boxes[j], n=8)
@@ -30,10 +50,11 @@ def _inside(geom):
         codes = band_matrix(-frac, -(th.inside_fraction + th.inside_band), -(th.inside_fraction - th.inside_band))
         np.fill_diagonal(codes, UNDECIDED)
         return frac, codes, th.inside_band
+
     return cached(geom, "contain:inside", f)
 
 
-def between_arrays(xy: np.ndarray, ids: np.ndarray, categories: list[str], dist: np.ndarray, th):
+def between_arrays(xy: np.ndarray, ids: np.ndarray, categories: list[str], dist: np.ndarray, th: Any) -> Any:
     """Every anchor pair at once: (B, C, cand, code, t) with anchor positions B[p], C[p] (ids[B] < ids[C]),
     cand[p, a] = between(a, B[p], C[p]) is not False, code[p, a] its TRUE/UNDECIDED code and t[p, a] the
     position along the segment. None when no pair spans a region."""
@@ -72,53 +93,58 @@ def between_arrays(xy: np.ndarray, ids: np.ndarray, categories: list[str], dist:
     return B, C, cand, code, t
 
 
-def between_table(xy: np.ndarray, ids: np.ndarray, categories: list[str], dist: np.ndarray, th) -> dict:
+def between_table(
+    xy: np.ndarray, ids: np.ndarray, categories: list[str], dist: np.ndarray, th: Any
+) -> dict[tuple[int, int, int], tuple[int, float]]:
     """{(a, b, c) positions: (code, t)} for anchors b, c with ids[b] < ids[c]; False instances omitted.
     Shared by the geometry and the query index (which passes stored node centres and distances)."""
     return table_from_arrays(between_arrays(xy, ids, categories, dist, th))
 
 
-def table_from_arrays(arr) -> dict:
+def table_from_arrays(arr: Any) -> dict[tuple[int, int, int], tuple[int, float]]:
     """between_table's dict from between_arrays' output (callers holding the arrays skip recomputing them)."""
     if arr is None:
         return {}
     B, C, cand, code, t = arr
     P, A = np.nonzero(cand)
     Bl, Cl = B.tolist(), C.tolist()
-    return {(a, Bl[p], Cl[p]): (c, tv) for p, a, c, tv in
-            zip(P.tolist(), A.tolist(), code[P, A].tolist(), t[P, A].tolist())}
+    return {
+        (a, Bl[p], Cl[p]): (c, tv) for p, a, c, tv in zip(P.tolist(), A.tolist(), code[P, A].tolist(), t[P, A].tolist())
+    }
 
 
-def _between(geom):
-    return cached(geom, "contain:between",
-                  lambda g: between_table(g.centers[:, :2], g.ids, g.categories, g.surface_distance, g.th))
+def _between(geom: SceneGeom) -> dict[tuple[int, int, int], tuple[int, float]]:
+    return cached(
+        geom,
+        "contain:between",
+        lambda g: between_table(g.centers[:, :2], g.ids, g.categories, g.surface_distance, g.th),
+    )
 
 
-def facts(geom) -> list[RelationFact]:
-    if not geom.world_ok:
-        return []
-    out = []
+def _inside_stored(geom: SceneGeom) -> list[RelationFact]:
     frac, codes, m = _inside(geom)
     order = np.argsort(geom.ids, kind="stable")
-    for i in order:
-        for j in order:
-            if i != j and codes[i, j] != FALSE:
-                out.append(fact("inside", (int(geom.ids[i]), int(geom.ids[j])), codes[i, j], frac[i, j], m))
-    return out  # between is derived by the query index from node centres and distances (between_table)
+    return [
+        fact("inside", (int(geom.ids[i]), int(geom.ids[j])), codes[i, j], frac[i, j], m)
+        for i in order
+        for j in order
+        if i != j and codes[i, j] != FALSE
+    ]
 
 
-def _inside_eval(negated: bool):
-    def evaluate(geom, a, b) -> RelationFact:
+def _inside_eval(negated: bool) -> Callable[..., RelationFact]:
+    def evaluate(geom: SceneGeom, a: Any, b: Any) -> RelationFact:
         i, j = pos(geom, a), pos(geom, b)
         frac, codes, m = _inside(geom)
         f = fact("inside", (a, b), codes[i, j], frac[i, j], m)
         if negated:
             return RelationFact("outside", (a, b), None if f.holds is None else not f.holds, f.value, f.margin)
         return f
+
     return evaluate
 
 
-def _between_eval(geom, a, b, c) -> RelationFact:
+def _between_eval(geom: SceneGeom, a: Any, b: Any, c: Any) -> RelationFact:
     i, j, k = pos(geom, a), pos(geom, b), pos(geom, c)
     if geom.ids[j] > geom.ids[k]:
         j, k = k, j
@@ -126,12 +152,122 @@ def _between_eval(geom, a, b, c) -> RelationFact:
     return fact("between", (a, b, c), code, t, geom.th.between_t_margin)
 
 
-register(Relation("inside", "containment", "world", 2, "share of A's box volume inside B's box", "inside_fraction, inside_band",
-                  "more than 30% of A's volume lies inside B's box", storage="sparse", needs=G, evaluate=_inside_eval(False)))
-register(Relation("outside", "containment", "world", 2, "share of A's box volume inside B's box", "inside_fraction, inside_band",
-                  "less than 30% of A's volume lies inside B's box", storage="derived", negation_of="inside", needs=G,
-                  evaluate=_inside_eval(True)))
-register(Relation("between", "containment", "world", 3, "position of A's centre along the B-C segment (0 at B, 1 at C)",
-                  "between_t_margin, between_corridor",
-                  "A's centre lies in the corridor spanned by B and C (ground plane), and no other object of A's category does",
-                  storage="derived", needs=G, evaluate=_between_eval))
+_EMPTY_ROW: tuple[frozenset[int], frozenset[int]] = (frozenset(), frozenset())
+
+
+class BetweenTable:
+    """between over a stored graph: the arrays of between_arrays on the stored node centres and distances,
+    grouped per anchor pair (b < c): the ids decided between (true) and undecided; every other object is
+    False. Single cells read the arrays as lists."""
+
+    def __init__(self, t: RelationTables) -> None:
+        self.ids = t.ids
+        self.pos = t.pos
+        xy = np.array([t.nodes[i].attributes["center"][:2] for i in t.ids], float).reshape(-1, 2)
+        cats = [t.nodes[i].category for i in t.ids]
+        arr = between_arrays(xy, np.array(t.ids), cats, t.distance_array(), t.th)
+        self.pairs: dict[tuple[int, int], int] = {}
+        self.rows: dict[tuple[int, int], tuple[frozenset[int], frozenset[int]]] = {}
+        self._cells: tuple[list[list[bool]], list[list[int]], list[list[float]]] = ([], [], [])
+        if arr is None:
+            return
+        B, C, cand, code, tt = arr
+        ids = self.ids
+        keys = [(ids[b], ids[c]) for b, c in zip(B.tolist(), C.tolist())]
+        self.pairs = {k: p for p, k in enumerate(keys)}
+        grouped: dict[int, tuple[list[int], list[int]]] = {}
+        P, A = np.nonzero(cand)
+        for p, a, c in zip(P.tolist(), A.tolist(), code[P, A].tolist()):
+            r = grouped.get(p)
+            if r is None:
+                r = grouped[p] = ([], [])
+            r[0 if c == TRUE else 1].append(ids[a])
+        for p, (yes, maybe) in grouped.items():
+            self.rows[keys[p]] = (frozenset(yes), frozenset(maybe))
+        self._cells = (cand.tolist(), code.tolist(), tt.tolist())
+
+    def row(self, b: int, c: int) -> tuple[frozenset[int], frozenset[int]]:
+        """(ids decided between b and c, ids undecided) for b < c; most pairs share one empty constant."""
+        return self.rows.get((b, c), _EMPTY_ROW)
+
+    @property
+    def largest(self) -> int:
+        """The most objects decided between any one anchor pair (0 when none)."""
+        return max((len(t) for t, _u in self.rows.values()), default=0)
+
+    def code(self, a: int, b: int, c: int) -> tuple[bool | None, float]:
+        """(holds, t) of between(a, b, c) for three distinct known ids: an object off the anchor pair's
+        candidate mask is False with t = 0 (the rule of between_table)."""
+        b, c = int(b), int(c)
+        p = self.pairs.get((b, c) if b < c else (c, b))
+        if p is None:
+            return False, 0.0
+        i = self.pos[int(a)]
+        cand, code, tt = self._cells
+        if not cand[p][i]:
+            return False, 0.0
+        return holds_of(code[p][i]), tt[p][i]
+
+
+def _between_table(t: RelationTables) -> BetweenTable | None:
+    return None if t.th is None else BetweenTable(t)
+
+
+def _between_cell(t: RelationTables, args: tuple[Any, ...]) -> Cell | None:
+    table = t.table("between")
+    if table is None or t.th is None:
+        return None
+    h, tv = table.code(*args)
+    return Cell(h, tv, t.th.between_t_margin)
+
+
+register(
+    Relation(
+        "inside",
+        "containment",
+        "world",
+        2,
+        "share of A's box volume inside B's box",
+        "inside_fraction, inside_band",
+        "more than 30% of A's volume lies inside B's box",
+        storage="sparse",
+        needs=G,
+        qa="pairwise",
+        evaluate=_inside_eval(False),
+        stored=_inside_stored,
+        cell=sparse_cell("inside", false_absent(lambda th: th.inside_band)),
+        table=sparse_table("inside"),
+    )
+)
+register(
+    Relation(
+        "outside",
+        "containment",
+        "world",
+        2,
+        "share of A's box volume inside B's box",
+        "inside_fraction, inside_band",
+        "less than 30% of A's volume lies inside B's box",
+        storage="derived",
+        negation_of="inside",
+        needs=G,
+        qa="pairwise",
+        evaluate=_inside_eval(True),
+    )
+)
+register(
+    Relation(
+        "between",
+        "containment",
+        "world",
+        3,
+        "position of A's centre along the B-C segment (0 at B, 1 at C)",
+        "between_t_margin, between_corridor",
+        "A's centre lies in the corridor spanned by B and C (ground plane), and no other object of A's category does",
+        storage="derived",
+        needs=G,
+        evaluate=_between_eval,
+        cell=_between_cell,
+        table=_between_table,
+    )
+)

@@ -7,14 +7,25 @@ in the image; when perspective makes the two disagree the relation is left undec
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from refspatial_gen.core.model import RelationFact
 from refspatial_gen.graph.relations.base import Relation, register
-from refspatial_gen.graph.relations.common import UNDECIDED, cached, decide_matrix, pair_evaluator, pair_facts
+from refspatial_gen.graph.relations.common import (
+    UNDECIDED,
+    Matrices,
+    cached,
+    decide_matrix,
+    pair_evaluator,
+    pair_facts,
+)
+from refspatial_gen.graph.relations.lookup import pair_cell, pair_table
+from refspatial_gen.graph.scene import SceneGeom
 
 
-def _lateral(geom):
+def _lateral(geom: SceneGeom) -> Matrices:
     x = geom.cam_centers[:, 0]
     u = geom.img_centroid[:, 0]
     v = x[None, :] - x[:, None]  # v[i, j] > 0: i is left of j
@@ -25,7 +36,7 @@ def _lateral(geom):
     return v, codes, geom.th.lateral_margin
 
 
-def _depthwise(geom):
+def _depthwise(geom: SceneGeom) -> Matrices:
     d = geom.near_depth
     v = d[None, :] - d[:, None]  # v[i, j] > 0: i nearer than j
     c = geom.center_depth
@@ -35,7 +46,7 @@ def _depthwise(geom):
     return v, codes, geom.th.depth_margin
 
 
-def _image_vertical(geom):
+def _image_vertical(geom: SceneGeom) -> Matrices:
     y = geom.img_centroid[:, 1]
     v = y[None, :] - y[:, None]  # v[i, j] > 0: i higher in the image than j
     return v, decide_matrix(v, geom.th.image_margin), geom.th.image_margin
@@ -44,36 +55,97 @@ def _image_vertical(geom):
 _GROUPS = {"left": _lateral, "front": _depthwise, "above_image": _image_vertical}
 
 
-def matrices(geom, rel: str):
+def matrices(geom: SceneGeom, rel: str) -> Matrices:
     return cached(geom, "dir:" + rel, _GROUPS[rel])
 
 
-def _m(rel: str):
+def _m(rel: str) -> Callable[[SceneGeom], Matrices]:
     return lambda geom: matrices(geom, rel)
 
 
-def facts(geom) -> list[RelationFact]:
-    out = []
-    for rel in _GROUPS:
-        v, codes, m = matrices(geom, rel)
-        out += pair_facts(rel, geom, v, codes, m)
-    return out
+def _stored(rel: str) -> Callable[[SceneGeom], list[RelationFact]]:
+    return lambda geom: pair_facts(rel, geom, *matrices(geom, rel))
 
 
-register(Relation("left", "directions", "cam", 2, "camera-x of B's centre minus A's (m)", "lateral_margin, image_margin",
-                  "A's centre is left of B's in the camera frame by more than the margin, and the image agrees",
-                  evaluate=pair_evaluator(_m("left"), "left")))
-register(Relation("right", "directions", "cam", 2, "camera-x of A's centre minus B's (m)", "lateral_margin, image_margin",
-                  "mirror of left: A's centre is right of B's", mirror_of="left", evaluate=pair_evaluator(_m("left"), "left", "right")))
-register(Relation("front", "directions", "cam", 2, "nearest-face depth of B minus A's (m)", "depth_margin",
-                  "A's nearest face is nearer the camera than B's by the margin (centre depths agree)",
-                  evaluate=pair_evaluator(_m("front"), "front")))
-register(Relation("behind", "directions", "cam", 2, "nearest-face depth of A minus B's (m)", "depth_margin",
-                  "mirror of front: A is farther from the camera than B", mirror_of="front",
-                  evaluate=pair_evaluator(_m("front"), "front", "behind")))
-register(Relation("above_image", "directions", "img", 2, "image-y of B's mask centroid minus A's (fraction of height)",
-                  "image_margin", "A's 2D centre is higher in the image than B's", evaluate=pair_evaluator(_m("above_image"), "above_image")))
-register(Relation("below_image", "directions", "img", 2, "image-y of A's mask centroid minus B's (fraction of height)",
-                  "image_margin", "mirror of above (image): A's 2D centre is lower in the image", mirror_of="above_image",
-                  evaluate=pair_evaluator(_m("above_image"), "above_image", "below_image")))
+def _pair(rid: str, frame: str, value: str, margin: str, definition: str) -> None:
+    """A canonical pair relation: stored once per pair, looked up and tabled by the pair rules."""
+    register(
+        Relation(
+            rid,
+            "directions",
+            frame,
+            2,
+            value,
+            margin,
+            definition,
+            qa="ordered",
+            evaluate=pair_evaluator(_m(rid), rid),
+            stored=_stored(rid),
+            cell=pair_cell(rid),
+            table=pair_table(rid),
+        )
+    )
 
+
+def _mirror(rid: str, of: str, frame: str, value: str, margin: str, definition: str) -> None:
+    register(
+        Relation(
+            rid,
+            "directions",
+            frame,
+            2,
+            value,
+            margin,
+            definition,
+            mirror_of=of,
+            qa="ordered",
+            evaluate=pair_evaluator(_m(of), of, rid),
+        )
+    )
+
+
+_pair(
+    "left",
+    "cam",
+    "camera-x of B's centre minus A's (m)",
+    "lateral_margin, image_margin",
+    "A's centre is left of B's in the camera frame by more than the margin, and the image agrees",
+)
+_mirror(
+    "right",
+    "left",
+    "cam",
+    "camera-x of A's centre minus B's (m)",
+    "lateral_margin, image_margin",
+    "mirror of left: A's centre is right of B's",
+)
+_pair(
+    "front",
+    "cam",
+    "nearest-face depth of B minus A's (m)",
+    "depth_margin",
+    "A's nearest face is nearer the camera than B's by the margin (centre depths agree)",
+)
+_mirror(
+    "behind",
+    "front",
+    "cam",
+    "nearest-face depth of A minus B's (m)",
+    "depth_margin",
+    "mirror of front: A is farther from the camera than B",
+)
+_pair(
+    "above_image",
+    "img",
+    "image-y of B's mask centroid minus A's (fraction of height)",
+    "image_margin",
+    "A's 2D centre is higher in the image than B's",
+)
+_mirror(
+    "below_image",
+    "above_image",
+    "img",
+    "image-y of A's mask centroid minus B's (fraction of height)",
+    "image_margin",
+    "mirror of above (image): A's 2D centre is lower in the image",
+)

@@ -7,19 +7,26 @@ that points up or down (|z| > 0.7) has no horizontal meaning and leaves these re
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from refspatial_gen.core.model import RelationFact
-from refspatial_gen.graph.scene import roll_next
-from refspatial_gen.graph.relations.base import FRONT_SOURCES, Relation, register
-from refspatial_gen.graph.relations.common import FALSE, TRUE, UNDECIDED, cached, fact, pos
+from refspatial_gen.graph.relations.base import FRONT_SOURCES, T_FALSE, T_UNDECIDED, Cell, Relation, register
+from refspatial_gen.graph.relations.common import FALSE, TRUE, UNDECIDED, Matrices, cached, fact, holds_of, pos
+from refspatial_gen.graph.relations.lookup import sparse_cell, sparse_table, stored_cell
+from refspatial_gen.graph.scene import SceneGeom, roll_next
+
+if TYPE_CHECKING:
+    from refspatial_gen.graph.tables import RelationTables
 
 UP = np.array([0.0, 0.0, 1.0])
 MAX_FRONT_Z = 0.7
 SECTORS = ("obj_front", "obj_left", "obj_behind", "obj_right")  # centred on 0, 90, 180, -90 degrees
 
 
-def horizontal_fronts(geom) -> np.ndarray:
+def horizontal_fronts(geom: SceneGeom) -> np.ndarray:
     """(n, 2) unit horizontal fronts (NaN where unknown or too vertical)."""
     f = geom.fronts.copy()
     bad = ~geom.has_front | (np.abs(f[:, 2]) > MAX_FRONT_Z)
@@ -32,14 +39,14 @@ def horizontal_fronts(geom) -> np.ndarray:
 
 
 # ------------------------------------------------------------------ camera rotations (unary)
-def _rotation_h(geom, i: int) -> RelationFact:
+def _rotation_h(geom: SceneGeom, i: int) -> RelationFact:
     x, _, z = geom.cam_centers[i]
     v = float(np.arctan2(x, z))
     m = geom.th.rotation_margin
     return RelationFact("rotation_horizontal", (int(geom.ids[i]),), True if abs(v) > m and z > 0 else None, v, m)
 
 
-def _rotation_v(geom, i: int) -> RelationFact:
+def _rotation_v(geom: SceneGeom, i: int) -> RelationFact:
     """Pitch in a gravity-levelled camera: elevation of the object's direction over the camera's
     horizontal forward axis. Undecided without gravity or when the camera looks straight down."""
     m = geom.th.rotation_margin
@@ -55,7 +62,7 @@ def _rotation_v(geom, i: int) -> RelationFact:
 
 
 # ------------------------------------------------------------------ angle between fronts (symmetric)
-def angle_between(h1, h2) -> float | None:
+def angle_between(h1: Any, h2: Any) -> float | None:
     """Angle (rad) between two horizontal unit fronts, None when either is unknown."""
     h1, h2 = np.asarray(h1, float), np.asarray(h2, float)
     if not (np.isfinite(h1).all() and np.isfinite(h2).all()):
@@ -63,7 +70,7 @@ def angle_between(h1, h2) -> float | None:
     return float(np.arccos(np.clip(h1 @ h2, -1.0, 1.0)))
 
 
-def _angle(geom, i: int, j: int) -> RelationFact:
+def _angle(geom: SceneGeom, i: int, j: int) -> RelationFact:
     h = horizontal_fronts(geom)
     m = geom.th.angle_margin
     v = angle_between(h[i], h[j])
@@ -87,12 +94,12 @@ def rays_hit_polygons(origins: np.ndarray, dirs: np.ndarray, polys: np.ndarray, 
     return (tmin <= tmax) & ~blocked
 
 
-def _facing_matrix(geom, sign: float):
-    def f(g):
+def _facing_matrix(geom: SceneGeom, sign: float) -> Matrices:
+    def f(g: SceneGeom) -> Matrices:
         n = g.n
         h = horizontal_fronts(g) * sign
         th = g.th
-        ok = np.isfinite(h).all(axis=1)
+        ok = np.asarray(np.isfinite(h).all(axis=1))
         hh = np.where(ok[:, None], h, 0.0)
         d = g.centers[None, :, :2] - g.centers[:, None, :2]  # (i, j): from i to j
         dist = np.linalg.norm(d, axis=2)
@@ -108,6 +115,7 @@ def _facing_matrix(geom, sign: float):
         np.fill_diagonal(codes, UNDECIDED)
         v[~ok, :] = np.pi
         return v, codes, th.facing_margin
+
     return cached(geom, f"orient:facing{sign:+.0f}", f)
 
 
@@ -120,7 +128,7 @@ def bearings(centers_xy: np.ndarray, fronts_h: np.ndarray) -> np.ndarray:
     return np.arctan2(np.einsum("ijd,jd->ij", d, left), np.einsum("ijd,jd->ij", d, fronts_h))
 
 
-def sector_codes(theta, margin: float, outside) -> dict[str, np.ndarray]:
+def sector_codes(theta: Any, margin: float, outside: Any) -> dict[str, np.ndarray]:
     """Decisions (int8 arrays shaped like theta) for each of the four 90-degree sectors. `outside` is
     False where A overlaps the anchor (no direction)."""
     theta = np.asarray(theta, float)
@@ -136,78 +144,202 @@ def sector_codes(theta, margin: float, outside) -> dict[str, np.ndarray]:
     return out
 
 
-def _sector_matrix(geom):
+def _sector_matrix(geom: SceneGeom) -> np.ndarray:
     return cached(geom, "orient:sector", lambda g: bearings(g.centers[:, :2], horizontal_fronts(g)))
 
 
-def _sector_fact(geom, i: int, j: int, rel: str) -> RelationFact:
+def _sector_fact(geom: SceneGeom, i: int, j: int, rel: str) -> RelationFact:
     theta = _sector_matrix(geom)[i, j]
     m = geom.th.sector_margin
     args = (int(geom.ids[i]), int(geom.ids[j]))
     if i == j or not np.isfinite(theta):
         return RelationFact(rel, args, None, 0.0, m)
     outside = geom.surface_distance[i, j] > 1e-6
-    return fact(rel, args, sector_codes(theta, m, outside)[rel], theta, m)
+    return fact(rel, args, int(sector_codes(theta, m, outside)[rel]), theta, m)
 
 
-# ------------------------------------------------------------------ facts
-def facts(geom) -> list[RelationFact]:
-    order = [int(i) for i in np.argsort(geom.ids, kind="stable")]
-    out = [_rotation_h(geom, i) for i in order]
-    out += [_rotation_v(geom, i) for i in order]
-    if not geom.world_ok:
-        return out
-    fr = [i for i in order if np.isfinite(horizontal_fronts(geom)[i]).all()]
-    for rel, sign in (("facing", 1.0), ("facing_away", -1.0)):
+# ------------------------------------------------------------------ stored instances
+def _ordered_ids(geom: SceneGeom) -> list[int]:
+    return [int(i) for i in np.argsort(geom.ids, kind="stable")]
+
+
+def _rotation_stored(fn: Callable[[SceneGeom, int], RelationFact]) -> Callable[[SceneGeom], list[RelationFact]]:
+    return lambda geom: [fn(geom, i) for i in _ordered_ids(geom)]
+
+
+def _facing_stored(rel: str, sign: float) -> Callable[[SceneGeom], list[RelationFact]]:
+    def stored(geom: SceneGeom) -> list[RelationFact]:
+        order = _ordered_ids(geom)
+        fr = [i for i in order if np.isfinite(horizontal_fronts(geom)[i]).all()]
         v, codes, m = _facing_matrix(geom, sign)
-        for i in fr:
-            for j in order:
-                if i != j and codes[i, j] != FALSE:
-                    out.append(fact(rel, (int(geom.ids[i]), int(geom.ids[j])), codes[i, j], v[i, j], m))
-    return out
+        return [
+            fact(rel, (int(geom.ids[i]), int(geom.ids[j])), codes[i, j], v[i, j], m)
+            for i in fr
+            for j in order
+            if i != j and codes[i, j] != FALSE
+        ]
+
+    return stored
 
 
-def _unary_eval(fn):
+def _unary_eval(fn: Callable[[SceneGeom, int], RelationFact]) -> Callable[..., RelationFact]:
     return lambda geom, a: fn(geom, pos(geom, a))
 
 
-def _angle_eval(geom, a, b) -> RelationFact:
+def _angle_eval(geom: SceneGeom, a: Any, b: Any) -> RelationFact:
     f = _angle(geom, pos(geom, a), pos(geom, b))
     return RelationFact("angle", (a, b), f.holds, f.value, f.margin)
 
 
-def _facing_eval(sign: float, rel: str):
-    def evaluate(geom, a, b) -> RelationFact:
+def _facing_eval(sign: float, rel: str) -> Callable[..., RelationFact]:
+    def evaluate(geom: SceneGeom, a: Any, b: Any) -> RelationFact:
         i, j = pos(geom, a), pos(geom, b)
         v, codes, m = _facing_matrix(geom, sign)
         return fact(rel, (a, b), codes[i, j], v[i, j], m)
+
     return evaluate
 
 
-def _sector_eval(rel: str):
+def _sector_eval(rel: str) -> Callable[..., RelationFact]:
     return lambda geom, a, b: _sector_fact(geom, pos(geom, a), pos(geom, b), rel)
 
 
+# ------------------------------------------------------------------ lookups on a stored graph
+def _front(t: RelationTables, a: Any) -> Any:
+    return t.nodes[int(a)].attributes.get("front")
+
+
+def _facing_absent(t: RelationTables, args: tuple[Any, ...]) -> Cell | None:
+    """An absent facing instance is False, or undecided when A has no (horizontal) front."""
+    if t.th is None:
+        return None
+    return Cell(None if _front(t, args[0]) is None else False, float(np.pi), t.th.facing_margin)
+
+
+def _facing_row(t: RelationTables, a: int) -> int:
+    return T_UNDECIDED if _front(t, a) is None else T_FALSE
+
+
+def _angle_cell(t: RelationTables, args: tuple[Any, ...]) -> Cell | None:
+    if t.th is None:
+        return None
+    fa, fb = (_front(t, x) for x in args)
+    v = None if fa is None or fb is None else angle_between(fa, fb)
+    return Cell(None if v is None else True, v or 0.0, t.th.angle_margin)
+
+
+def _sector_cell(rel: str) -> Callable[[RelationTables, tuple[Any, ...]], Cell | None]:
+    def cell(t: RelationTables, args: tuple[Any, ...]) -> Cell | None:
+        if t.th is None:
+            return None
+        a, b = args
+        m = t.th.sector_margin
+        fb = _front(t, b)
+        if fb is None:
+            return Cell(None, 0.0, m)
+        ca = np.array(t.nodes[int(a)].attributes["center"][:2], float)
+        cb = np.array(t.nodes[int(b)].attributes["center"][:2], float)
+        theta = bearings(np.stack([ca, cb]), np.array([[np.nan, np.nan], fb], float))[0, 1]
+        d = t.distance(a, b)
+        code = sector_codes(np.array(theta), m, np.array(d is not None and d > 1e-6))[rel]
+        return Cell(holds_of(int(code)), float(theta), m)
+
+    return cell
+
+
 F = ("gravity", "front")
-register(Relation("rotation_horizontal", "orientation", "cam", 1, "atan2(x, z) of A's centre in the camera frame (rad, + = right)",
-                  "rotation_margin", "angle the camera must yaw to face the object", storage="unary",
-                  evaluate=_unary_eval(_rotation_h)))
-register(Relation("rotation_vertical", "orientation", "cam", 1,
-                  "elevation of A's centre over the levelled camera's forward axis (rad, + = up)", "rotation_margin",
-                  "angle the camera must pitch (in a gravity-levelled camera) to face the object", storage="unary",
-                  needs=("gravity",), evaluate=_unary_eval(_rotation_v)))
-register(Relation("angle", "orientation", "world", 2, "angle between the horizontal front directions (rad)", "angle_margin",
-                  "angle between two objects' front directions", sources=FRONT_SOURCES, storage="derived", needs=F,
-                  evaluate=_angle_eval))
-register(Relation("facing", "orientation", "obj", 2, "angle between A's front and the direction to B (rad)",
-                  "facing_cone, facing_margin",
-                  "B lies within a 30-degree cone around A's front direction, or A's front ray hits B's footprint",
-                  sources=FRONT_SOURCES, storage="sparse", needs=F, evaluate=_facing_eval(1.0, "facing")))
-register(Relation("facing_away", "orientation", "obj", 2, "angle between A's back and the direction to B (rad)",
-                  "facing_cone, facing_margin", "same test as facing with A's back direction: A turns its back to B",
-                  sources=FRONT_SOURCES, storage="sparse", needs=F, evaluate=_facing_eval(-1.0, "facing_away")))
-for _rel, _what in (("obj_front", "in front of"), ("obj_left", "to the left of"), ("obj_behind", "behind"),
-                    ("obj_right", "to the right of")):
-    register(Relation(_rel, "object_frame", "obj", 2, "bearing of A's centre in B's own frame (rad, 0 = B's front, + = B's left)",
-                      "sector_margin", f"A is {_what} B from B's own point of view (90-degree sector around B's front axes)",
-                      sources=FRONT_SOURCES, storage="derived", needs=F, spec=False, evaluate=_sector_eval(_rel)))
+register(
+    Relation(
+        "rotation_horizontal",
+        "orientation",
+        "cam",
+        1,
+        "atan2(x, z) of A's centre in the camera frame (rad, + = right)",
+        "rotation_margin",
+        "angle the camera must yaw to face the object",
+        storage="unary",
+        evaluate=_unary_eval(_rotation_h),
+        stored=_rotation_stored(_rotation_h),
+        cell=stored_cell("rotation_horizontal"),
+    )
+)
+register(
+    Relation(
+        "rotation_vertical",
+        "orientation",
+        "cam",
+        1,
+        "elevation of A's centre over the levelled camera's forward axis (rad, + = up)",
+        "rotation_margin",
+        "angle the camera must pitch (in a gravity-levelled camera) to face the object",
+        storage="unary",
+        needs=("gravity",),
+        world_only=False,
+        evaluate=_unary_eval(_rotation_v),
+        stored=_rotation_stored(_rotation_v),
+        cell=stored_cell("rotation_vertical"),
+    )
+)
+register(
+    Relation(
+        "angle",
+        "orientation",
+        "world",
+        2,
+        "angle between the horizontal front directions (rad)",
+        "angle_margin",
+        "angle between two objects' front directions",
+        sources=FRONT_SOURCES,
+        storage="derived",
+        needs=F,
+        evaluate=_angle_eval,
+        cell=_angle_cell,
+    )
+)
+for _rel, _sign, _what in (
+    ("facing", 1.0, "B lies within a 30-degree cone around A's front direction, or A's front ray hits B's footprint"),
+    ("facing_away", -1.0, "same test as facing with A's back direction: A turns its back to B"),
+):
+    register(
+        Relation(
+            _rel,
+            "orientation",
+            "obj",
+            2,
+            f"angle between A's {'front' if _sign > 0 else 'back'} and the direction to B (rad)",
+            "facing_cone, facing_margin",
+            _what,
+            sources=FRONT_SOURCES,
+            storage="sparse",
+            needs=F,
+            qa="pairwise",
+            key_step="Orientation",
+            evaluate=_facing_eval(_sign, _rel),
+            stored=_facing_stored(_rel, _sign),
+            cell=sparse_cell(_rel, _facing_absent),
+            table=sparse_table(_rel, _facing_row),
+        )
+    )
+for _rel, _what in (
+    ("obj_front", "in front of"),
+    ("obj_left", "to the left of"),
+    ("obj_behind", "behind"),
+    ("obj_right", "to the right of"),
+):
+    register(
+        Relation(
+            _rel,
+            "object_frame",
+            "obj",
+            2,
+            "bearing of A's centre in B's own frame (rad, 0 = B's front, + = B's left)",
+            "sector_margin",
+            f"A is {_what} B from B's own point of view (90-degree sector around B's front axes)",
+            sources=FRONT_SOURCES,
+            storage="derived",
+            needs=F,
+            spec=False,
+            evaluate=_sector_eval(_rel),
+            cell=_sector_cell(_rel),
+        )
+    )

@@ -7,26 +7,33 @@ or edge whose name would be ambiguous (a table seen diagonally) gets no label an
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from refspatial_gen.core.model import RelationFact
-from refspatial_gen.graph.scene import roll_next
-from refspatial_gen.graph.relations.base import SURFACE_SOURCES, Relation, register
+from refspatial_gen.graph.relations.base import SURFACE_SOURCES, Cell, Relation, register
 from refspatial_gen.graph.relations.common import FALSE, TRUE, UNDECIDED, cached, pos
+from refspatial_gen.graph.scene import SceneGeom, roll_next
 from refspatial_gen.graph.support import get_supports, surface_polygon
+
+if TYPE_CHECKING:
+    from refspatial_gen.graph.tables import RelationTables
 
 EDGE_AXIS_TOLERANCE = np.deg2rad(30.0)  # an edge's outward normal within this of a viewer axis gets a name
 CORNER_SEPARATION = 0.15  # corner coordinates must differ from the centre by this share of the extent
 
 
-def surface_labels(geom) -> dict[str, dict]:
+def surface_labels(geom: SceneGeom) -> dict[str, dict[str, Any]]:
     """{surface id: {"polygon": (4,2), "corners": {label: xy}, "edges": {label: (a, b)}}}."""
-    def f(g):
+
+    def f(g: SceneGeom) -> dict[str, dict[str, Any]]:
         out = {}
         axes = g.camera_axes_horizontal()
         for s in g.surfaces:
             poly = surface_polygon(s.box)
-            entry = {"polygon": poly, "corners": {}, "edges": {}, "z": s.top_z}
+            entry: dict[str, Any] = {"polygon": poly, "corners": {}, "edges": {}, "z": s.top_z}
             out[s.id] = entry
             if axes is None:
                 continue
@@ -35,7 +42,7 @@ def surface_labels(geom) -> dict[str, dict]:
             lat, dep = (poly - c) @ right[:2], (poly - c) @ fwd[:2]
             ext_l, ext_d = np.ptp(lat), np.ptp(dep)
             ok = (np.abs(lat) > CORNER_SEPARATION * ext_l) & (np.abs(dep) > CORNER_SEPARATION * ext_d)
-            names = [("far" if d > 0 else "near") + "-" + ("right" if l > 0 else "left") for l, d in zip(lat, dep)]
+            names = [("far" if d > 0 else "near") + "-" + ("right" if lt > 0 else "left") for lt, d in zip(lat, dep)]
             if ok.all() and len(set(names)) == 4:
                 entry["corners"] = {names[k]: poly[k] for k in range(4)}
             for k in range(4):
@@ -43,10 +50,16 @@ def surface_labels(geom) -> dict[str, dict]:
                 e = b - a
                 n = np.array([e[1], -e[0]]) / (np.linalg.norm(e) + 1e-12)  # outward normal of a CCW polygon
                 ang = np.arctan2(n @ fwd[:2], n @ right[:2])  # 0 = right, 90 = far, 180 = left, -90 = near
-                for label, centre in (("right edge", 0.0), ("far edge", np.pi / 2), ("left edge", np.pi), ("near edge", -np.pi / 2)):
+                for label, centre in (
+                    ("right edge", 0.0),
+                    ("far edge", np.pi / 2),
+                    ("left edge", np.pi),
+                    ("near edge", -np.pi / 2),
+                ):
                     if abs((ang - centre + np.pi) % (2 * np.pi) - np.pi) < EDGE_AXIS_TOLERANCE:
                         entry["edges"][label] = (a, b)
         return out
+
     return cached(geom, "surface:labels", f)
 
 
@@ -73,10 +86,11 @@ def _footprint_to_edge(fp: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
     return float(max(0.0, ((fp - a) @ inward).min()))
 
 
-def _corner_edge(geom):
+def _corner_edge(geom: SceneGeom) -> dict[tuple[str, int, str, str], tuple[int, float]]:
     """{(rel, object pos, surface id, label): (code, value)} for objects whose support chain ends on a
     surface with labels; False instances omitted."""
-    def f(g):
+
+    def f(g: SceneGeom) -> dict[tuple[str, int, str, str], tuple[int, float]]:
         th = g.th
         _, roots = get_supports(g)
         labels = surface_labels(g)
@@ -91,40 +105,79 @@ def _corner_edge(geom):
                 vs = _footprint_to_points(fp, np.array([p for _, p in corners]))
                 for (lab, _), v in zip(corners, vs):
                     v = float(v)
-                    out[("corner", i, sid, lab)] = (_band(v, th.corner_reach, th.corner_reach + th.surface_band_margin), v)
+                    out[("corner", i, sid, lab)] = (
+                        _band(v, th.corner_reach, th.corner_reach + th.surface_band_margin),
+                        v,
+                    )
             for lab, (a, b) in sorted(labels[sid]["edges"].items()):
                 v = _footprint_to_edge(fp, a, b)
                 out[("edge", i, sid, lab)] = (_band(v, th.edge_band, th.edge_band + th.surface_band_margin), v)
         return out
+
     return cached(geom, "surface:corner_edge", f)
 
 
-def facts(geom) -> list[RelationFact]:
-    if not geom.world_ok:
-        return []
-    th = geom.th
-    out = []
-    items = _corner_edge(geom)
-    for key in sorted(items, key=lambda k: (k[0], int(geom.ids[k[1]]), k[2], k[3])):
-        code, v = items[key]
-        if code in (TRUE, UNDECIDED):
-            m = th.surface_band_margin
-            out.append(RelationFact(key[0], (int(geom.ids[key[1]]), key[2], key[3]), None if code == UNDECIDED else True, v, m))
-    return out
+def _spot_stored(rel: str) -> Callable[[SceneGeom], list[RelationFact]]:
+    """The holding and undecided corner (or edge) instances, by (object id, surface, label)."""
+
+    def stored(geom: SceneGeom) -> list[RelationFact]:
+        m = geom.th.surface_band_margin
+        items = _corner_edge(geom)
+        out = []
+        for key in sorted((k for k in items if k[0] == rel), key=lambda k: (int(geom.ids[k[1]]), k[2], k[3])):
+            code, v = items[key]
+            if code in (TRUE, UNDECIDED):
+                out.append(
+                    RelationFact(
+                        rel, (int(geom.ids[key[1]]), key[2], key[3]), None if code == UNDECIDED else True, v, m
+                    )
+                )
+        return out
+
+    return stored
 
 
-def _eval(rel: str):
-    def evaluate(geom, a, surface_id: str, label: str) -> RelationFact:
+def _spot_cell(rel: str) -> Callable[[RelationTables, tuple[Any, ...]], Cell | None]:
+    """The stored instance; absent = False for an object standing on that surface when the surface has that
+    label, else not evaluated."""
+    key = "corners" if rel == "corner" else "edges"
+
+    def cell(t: RelationTables, args: tuple[Any, ...]) -> Cell | None:
+        f = t.stored(rel, args)
+        if f is not None:
+            return Cell(f.holds, float(f.value), f.margin)
+        a, sid, label = args
+        labels = t.surfaces.get(sid, {}).get(key, [])
+        if t.th is None or t.nodes[int(a)].attributes.get("surface") != sid or label not in labels:
+            return None
+        return Cell(False, 0.0, t.th.surface_band_margin)
+
+    return cell
+
+
+def _spot_domain(rel: str) -> Callable[[RelationTables], list[tuple[Any, ...]]]:
+    key = "corners" if rel == "corner" else "edges"
+    return lambda t: [(i, sid, lab) for i in t.ids for sid, e in sorted(t.surfaces.items()) for lab in e.get(key, [])]
+
+
+def _eval(rel: str) -> Callable[..., RelationFact]:
+    def evaluate(geom: SceneGeom, a: Any, surface_id: str, label: str) -> RelationFact:
         i = pos(geom, a)
         code, v = _corner_edge(geom).get((rel, i, surface_id, label), (None, 0.0))
         if code is None:
             return RelationFact(rel, (a, surface_id, label), None, 0.0, geom.th.surface_band_margin)
-        return RelationFact(rel, (a, surface_id, label), None if code == UNDECIDED else bool(code == TRUE), v,
-                            geom.th.surface_band_margin)
+        return RelationFact(
+            rel,
+            (a, surface_id, label),
+            None if code == UNDECIDED else bool(code == TRUE),
+            v,
+            geom.th.surface_band_margin,
+        )
+
     return evaluate
 
 
-def _free_eval(geom, surface_id: str, kind: str, *anchors) -> RelationFact:
+def _free_eval(geom: SceneGeom, surface_id: str, kind: str, *anchors: Any) -> RelationFact:
     from refspatial_gen.graph.freespace import free_regions
 
     for r in free_regions(geom):
@@ -133,15 +186,73 @@ def _free_eval(geom, surface_id: str, kind: str, *anchors) -> RelationFact:
     return RelationFact("free_space", (surface_id, kind, *anchors), False, 0.0, geom.th.free_min_area)
 
 
+def _free_cell(t: RelationTables, args: tuple[Any, ...]) -> Cell | None:
+    if t.th is None:
+        return None
+    sid, kind, *anchors = args
+    for r in t.regions(kind, tuple(anchors)):
+        if r.surface_id == sid:
+            return Cell(True, float(r.area), t.th.free_min_area)
+    return Cell(False, 0.0, t.th.free_min_area)
+
+
+def _free_instances(t: RelationTables) -> list[RelationFact]:
+    """One instance per stored region (regions of one kind and anchors differ by label and area)."""
+    if t.th is None:
+        return []
+    m = t.th.free_min_area
+    return [RelationFact("free_space", (r.surface_id, r.kind, *r.anchors), True, r.area, m) for r in t.graph.free_space]
+
+
 S = ("gravity", "surface")
-register(Relation("corner", "surface", "world", 3, "distance from A's footprint to the labelled corner (m)",
-                  "corner_reach, surface_band_margin",
-                  "A (or a free point) is within reach of a support surface's corner, named from the viewer (e.g. far-left)",
-                  sources=SURFACE_SOURCES, storage="sparse", needs=S, evaluate=_eval("corner")))
-register(Relation("edge", "surface", "world", 3, "inward distance from the labelled edge to A's footprint (m)",
-                  "edge_band, surface_band_margin",
-                  "A (or a free point) lies within a band along one edge of a support surface (e.g. the right edge)",
-                  sources=SURFACE_SOURCES, storage="sparse", needs=S, evaluate=_eval("edge")))
-register(Relation("free_space", "surface", "world", 2, "visible free area of the region (m^2)", "free_min_area, visibility_tolerance",
-                  "a visible point on a support surface not covered by any object footprint (left/right/front/behind of, between, corner, edge)",
-                  sources=SURFACE_SOURCES, storage="region", needs=S, evaluate=_free_eval))
+for _rel, _value, _margin, _definition in (
+    (
+        "corner",
+        "distance from A's footprint to the labelled corner (m)",
+        "corner_reach, surface_band_margin",
+        "A (or a free point) is within reach of a support surface's corner, named from the viewer (e.g. far-left)",
+    ),
+    (
+        "edge",
+        "inward distance from the labelled edge to A's footprint (m)",
+        "edge_band, surface_band_margin",
+        "A (or a free point) lies within a band along one edge of a support surface (e.g. the right edge)",
+    ),
+):
+    register(
+        Relation(
+            _rel,
+            "surface",
+            "world",
+            3,
+            _value,
+            _margin,
+            _definition,
+            sources=SURFACE_SOURCES,
+            storage="sparse",
+            needs=S,
+            evaluate=_eval(_rel),
+            stored=_spot_stored(_rel),
+            cell=_spot_cell(_rel),
+            domain=_spot_domain(_rel),
+        )
+    )
+register(
+    Relation(
+        "free_space",
+        "surface",
+        "world",
+        2,
+        "visible free area of the region (m^2)",
+        "free_min_area, visibility_tolerance",
+        "a visible point on a support surface not covered by any object footprint (left/right/front/behind "
+        "of, between, corner, edge)",
+        sources=SURFACE_SOURCES,
+        storage="region",
+        needs=S,
+        variadic=True,
+        evaluate=_free_eval,
+        cell=_free_cell,
+        instances=_free_instances,
+    )
+)

@@ -3,6 +3,7 @@ the scene statistics a reviewer asks for: objects per scene and support surfaces
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -35,8 +36,11 @@ def _summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def gallery(out: str | Path, n_scenes: int = 24, seed: int = 0, config: dict[str, Any] | None = None,
-            cols: int = 6, thumb_width: int = 320, quality: int = 85) -> dict[str, Any]:
-    """Render `n_scenes` scenes (the config's layout mix; tabletop and room alternately if it has none)."""
+            cols: int = 6, thumb_width: int = 320, quality: int = 85,
+            rng_for: Callable[[str], np.random.Generator] | None = None) -> dict[str, Any]:
+    """Render `n_scenes` scenes (the config's layout mix; tabletop and room alternately if it has none).
+    `rng_for(unit key)`: the run's unit generators; with it the sheet shows exactly the scenes a run makes
+    (the run's config, no forced layouts)."""
     from PIL import Image, ImageDraw
 
     from refspatial_gen.sources.sim import generate
@@ -46,11 +50,12 @@ def gallery(out: str | Path, n_scenes: int = 24, seed: int = 0, config: dict[str
     i = 0
     while len(thumbs) < n_scenes and i < 3 * n_scenes:
         cfg = dict(config)
-        if "layouts" not in config:
+        if "layouts" not in config and rng_for is None:
             cfg["layouts"] = {"room": 1.0} if i % 2 else {"tabletop": 1.0}
         key = f"sim:{i:06d}"
         try:
-            frames, desc, _ = generate(key, np.random.default_rng([seed, i]), cfg, keep_scene=True)
+            frames, desc, _ = generate(key, rng_for(key) if rng_for else np.random.default_rng([seed, i]), cfg,
+                                     keep_scene=True)
         except DropUnit as e:
             drops[e.reason] = drops.get(e.reason, 0) + 1
             i += 1

@@ -6,10 +6,10 @@ deterministic view ids, "sequence/frame" for multi-frame scans) and `read(root, 
 
 from __future__ import annotations
 
-import importlib
 from pathlib import Path
 from typing import Any, Protocol
 
+from refspatial_gen.core.registry import Registry
 from refspatial_gen.sources.scan.view import ScanView
 
 
@@ -24,26 +24,22 @@ class ScanReader(Protocol):
 
 
 # name -> "module:Class"; detection tries them in this order (most specific first)
-READERS: dict[str, str] = {
-    "generic": "refspatial_gen.sources.scan.readers.generic:GenericReader",
-    "sunrgbd": "refspatial_gen.sources.scan.readers.sunrgbd:SunRGBDReader",
-    "scannet": "refspatial_gen.sources.scan.readers.scannet:ScanNetReader",
-    "colmap": "refspatial_gen.sources.scan.readers.colmap:ColmapReader",
-    "mcap": "refspatial_gen.sources.scan.readers.mcap_reader:McapReader",
-    "usd": "refspatial_gen.sources.scan.readers.usd:UsdReader",
-    "rgbd_trajectory": "refspatial_gen.sources.scan.readers.trajectory:TrajectoryReader",
-}
+READERS: Registry[type] = Registry("scan reader")
+READERS.add("generic", "refspatial_gen.sources.scan.readers.generic:GenericReader")
+READERS.add("sunrgbd", "refspatial_gen.sources.scan.readers.sunrgbd:SunRGBDReader")
+READERS.add("scannet", "refspatial_gen.sources.scan.readers.scannet:ScanNetReader")
+READERS.add("colmap", "refspatial_gen.sources.scan.readers.colmap:ColmapReader")
+READERS.add("mcap", "refspatial_gen.sources.scan.readers.mcap_reader:McapReader")
+READERS.add("usd", "refspatial_gen.sources.scan.readers.usd:UsdReader")
+READERS.add("rgbd_trajectory", "refspatial_gen.sources.scan.readers.trajectory:TrajectoryReader")
 
 
 def get_reader(name: str) -> ScanReader:
-    if name not in READERS:
-        raise KeyError(f"unknown scan reader {name!r} (known: {', '.join(READERS)})")
-    mod, attr = READERS[name].split(":")
-    return getattr(importlib.import_module(mod), attr)()
+    return READERS.get(name)()  # type: ignore[no-any-return]
 
 
 def detect_reader(root: Path) -> str:
-    """The first reader (in READERS order) that recognises the folder or file."""
+    """The first reader (in registration order) that recognises the folder or file."""
     for name in READERS:
         if get_reader(name).detect(root):
             return name

@@ -1,6 +1,7 @@
 """Small real Samples for tests and benches: toy-source frames with hand-made graphs and QA pairs.
 
-Why here and not in tests/: the bench (`make bench`) needs the same data when no run output exists.
+Why here (beside the toy source) and not in tests/: the shard bench (`make bench`) needs the same data when
+no run output exists, and the shard stage must not import a source itself.
 The QA pairs are real in the sense that matters for shards: each "locate" answer is the answer point of
 its target's mask, so exports and readers can check geometry round trips.
 """
@@ -11,12 +12,12 @@ import numpy as np
 
 from refspatial_gen.core.mask import answer_pixel, normalise_point
 from refspatial_gen.core.model import KeyStep, Node, QAPair, RelationFact, Sample, SceneGraph
+from refspatial_gen.sources.toy import toy_frame
 
 
 def make_sample(rng: np.random.Generator, idx: int, *, views: int = 1, width: int = 320, height: int = 240,
                 n_qa: int = 3) -> Sample:
     """One Sample of `views` toy frames (same boxes, different cameras when views > 1)."""
-    from refspatial_gen.sources.toy import toy_frame
 
     first = toy_frame(rng, int(rng.integers(3, 6)), width, height, frame_id=f"toy:{idx:06d}:v0")
     frames = [first]
