@@ -14,7 +14,7 @@ from refspatial_gen.cli import main
 from refspatial_gen.shards import ShardWriter, iter_raw, write_index
 from refspatial_gen.shards.export import export
 from refspatial_gen.shards.export_files import sample_stem
-from refspatial_gen.shards.testing import make_samples
+from refspatial_gen.sources.toy_samples import make_samples
 
 FORMATS = ("sft", "rft", "refspatial-bench")
 
