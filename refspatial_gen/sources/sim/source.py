@@ -186,6 +186,7 @@ def generate(unit_key: str, rng: np.random.Generator, config: dict[str, Any], ti
     from refspatial_gen.core.geometry import Box3D
     from refspatial_gen.sources.sim.cameras import sample_cameras
     from refspatial_gen.sources.sim.frames import make_frames, scene_boxes
+    from refspatial_gen.sources.sim.finish import draw_finishes
     from refspatial_gen.sources.sim.lighting import sample_lights
     from refspatial_gen.sources.sim.physics import build_model, settle
     from refspatial_gen.sources.sim.renderers import get_renderer
@@ -206,6 +207,7 @@ def generate(unit_key: str, rng: np.random.Generator, config: dict[str, Any], ti
     if not desc.objects:
         raise DropUnit("layout_empty", f"{kind}: no object could be placed")
     desc.lights = sample_lights(rng, cfg, np.mean([o.pos for o in desc.objects], axis=0), desc.room_half)
+    draw_finishes(desc.objects, catalog.material_ranges, rng)
     sim = build_model(desc, catalog.materials, cfg, int(cfg["views"]))
     t1 = time.perf_counter()
     info = settle(sim, cfg)
