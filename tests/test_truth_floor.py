@@ -36,9 +36,13 @@ def cfg():
 @pytest.fixture(scope="module")
 def tiny_leftmost():
     """Four cans in a row, the leftmost a sliver of about 30 pixels; a book in front."""
-    boxes = [("can", "red", _box(-0.35, 0.0, 0.008, 0.008)), ("can", "red", _box(-0.1, 0.0, 0.065, 0.12)),
-             ("can", "blue", _box(0.1, 0.05, 0.065, 0.12)), ("can", "green", _box(0.3, 0.0, 0.065, 0.12)),
-             ("book", "yellow", _box(0.0, -0.2, 0.18, 0.03))]
+    boxes = [
+        ("can", "red", _box(-0.35, 0.0, 0.008, 0.008)),
+        ("can", "red", _box(-0.1, 0.0, 0.065, 0.12)),
+        ("can", "blue", _box(0.1, 0.05, 0.065, 0.12)),
+        ("can", "green", _box(0.3, 0.0, 0.065, 0.12)),
+        ("book", "yellow", _box(0.0, -0.2, 0.18, 0.03)),
+    ]
     f = toy_frame(np.random.default_rng(0), boxes=boxes, width=640, height=480)
     assert 10 <= f.object(1).mask.area <= 60, f.object(1).mask.area  # the sliver is there, and tiny
     return f, build_graph(f)
@@ -81,8 +85,12 @@ def test_tiny_leftmost_cup_does_not_shift_ordinals(tiny_leftmost, cfg):
 
 
 def test_implausible_person_gets_no_metric_question(cfg):
-    boxes = [("box", "red", _box(-0.25, 0.0, 0.1, 0.12)), ("book", "blue", _box(0.05, 0.1, 0.16, 0.04)),
-             ("can", "green", _box(0.25, -0.05, 0.065, 0.12)), ("can", "red", _box(0.0, -0.15, 0.065, 0.12))]
+    boxes = [
+        ("box", "red", _box(-0.25, 0.0, 0.1, 0.12)),
+        ("book", "blue", _box(0.05, 0.1, 0.16, 0.04)),
+        ("can", "green", _box(0.25, -0.05, 0.065, 0.12)),
+        ("can", "red", _box(0.0, -0.15, 0.065, 0.12)),
+    ]
     f = toy_frame(np.random.default_rng(1), boxes=boxes, width=640, height=480)
     f.objects[3].category = "person"  # a 12 cm person: a photo lifted at the wrong scale
     g = build_graph(f)
@@ -120,15 +128,18 @@ def test_verify_fails_a_pair_naming_a_below_floor_object(tiny_leftmost, cfg):
 
 
 def test_support_needs_a_bearer():
+    from refspatial_gen.core.geometry import Box3D
     from refspatial_gen.graph.builder import geometry
     from refspatial_gen.graph.support import find_supports
 
-    from refspatial_gen.core.geometry import Box3D
-
     # a tray resting over the edge of a squat can: geometry alone says "on the can"; a can carries no tray
     tray = Box3D(np.array([0.105, 0.0, TOP + 0.02 + 0.01]), np.array([0.25, 0.2, 0.02]), np.eye(3))
-    f = toy_frame(np.random.default_rng(0), boxes=[("can", "red", _box(0.0, 0.0, 0.065, 0.02)), ("tray", "blue", tray)],
-                  width=640, height=480)
+    f = toy_frame(
+        np.random.default_rng(0),
+        boxes=[("can", "red", _box(0.0, 0.0, 0.065, 0.02)), ("tray", "blue", tray)],
+        width=640,
+        height=480,
+    )
     assert len(f.objects) == 2
     geom = geometry(f)
     sup = find_supports(geom)

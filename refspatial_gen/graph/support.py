@@ -77,7 +77,7 @@ def find_supports(geom: SceneGeom) -> list[Support | None]:
             # share of the smaller footprint that the two have in common
             common = ov[i, j] if area[i] <= area[j] else ov[j, i]
             if common >= th.support_overlap and geom.centers[i, 2] > geom.centers[j, 2]:
-                if not _bears(geom, j, i):
+                if not _bears(geom, int(j), i):
                     refused += 1
                     continue
                 cands.append((abs(gap), 0, Support("object", int(geom.ids[j]), float(gap), float(common))))

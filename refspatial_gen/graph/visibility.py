@@ -28,14 +28,34 @@ from refspatial_gen.schema import Field, check_section
 
 DEFAULTS = {"min_visible_px": 150, "min_visible_fraction": 0.25, "min_in_view_fraction": 0.5, "size_tolerance": 0.0}
 TRUTH_FIELDS: dict[str, Field] = {
-    "min_visible_px": Field(int, default=DEFAULTS["min_visible_px"], min=0, max=1_000_000,
-                            doc="visible mask pixels every referent, option and mark needs"),
-    "min_visible_fraction": Field(float, default=DEFAULTS["min_visible_fraction"], min=0.0, max=1.0,
-                                  doc="visible / unoccluded projected pixels (where the source measures it)"),
-    "min_in_view_fraction": Field(float, default=DEFAULTS["min_in_view_fraction"], min=0.0, max=1.0,
-                                  doc="share of the object's 3D box inside the camera's view (image border cut)"),
-    "size_tolerance": Field(float, default=DEFAULTS["size_tolerance"], min=0.0, max=10.0,
-                            doc="widen every category size range by this fraction before a metric question"),
+    "min_visible_px": Field(
+        int,
+        default=DEFAULTS["min_visible_px"],
+        min=0,
+        max=1_000_000,
+        doc="visible mask pixels every referent, option and mark needs",
+    ),
+    "min_visible_fraction": Field(
+        float,
+        default=DEFAULTS["min_visible_fraction"],
+        min=0.0,
+        max=1.0,
+        doc="visible / unoccluded projected pixels (where the source measures it)",
+    ),
+    "min_in_view_fraction": Field(
+        float,
+        default=DEFAULTS["min_in_view_fraction"],
+        min=0.0,
+        max=1.0,
+        doc="share of the object's 3D box inside the camera's view (image border cut)",
+    ),
+    "size_tolerance": Field(
+        float,
+        default=DEFAULTS["size_tolerance"],
+        min=0.0,
+        max=10.0,
+        doc="widen every category size range by this fraction before a metric question",
+    ),
 }
 # reasons (graph.meta["truth"] keys, node attribute "below_floor")
 FEW_PIXELS, LOW_FRACTION, OUT_OF_VIEW = "below_floor_pixels", "below_floor_fraction", "below_floor_border"
@@ -51,9 +71,12 @@ class Floor:
     size_tolerance: float = DEFAULTS["size_tolerance"]
 
     def to_json(self) -> dict[str, float]:
-        return {"min_in_view_fraction": round(float(self.min_in_view_fraction), 6),
-                "min_visible_fraction": round(float(self.min_visible_fraction), 6),
-                "min_visible_px": int(self.min_visible_px), "size_tolerance": round(float(self.size_tolerance), 6)}
+        return {
+            "min_in_view_fraction": round(float(self.min_in_view_fraction), 6),
+            "min_visible_fraction": round(float(self.min_visible_fraction), 6),
+            "min_visible_px": int(self.min_visible_px),
+            "size_tolerance": round(float(self.size_tolerance), 6),
+        }
 
 
 def floor_of(config: dict[str, Any] | None) -> Floor:
@@ -63,8 +86,12 @@ def floor_of(config: dict[str, Any] | None) -> Floor:
     if unknown:
         raise ValueError(f"unknown graph.truth key(s) {sorted(unknown)}; known: {sorted(TRUTH_FIELDS)}")
     vals = {k: (raw[k] if raw.get(k) is not None else f.default) for k, f in TRUTH_FIELDS.items()}
-    return Floor(int(vals["min_visible_px"]), float(vals["min_visible_fraction"]),
-                 float(vals["min_in_view_fraction"]), float(vals["size_tolerance"]))
+    return Floor(
+        int(vals["min_visible_px"]),
+        float(vals["min_visible_fraction"]),
+        float(vals["min_in_view_fraction"]),
+        float(vals["size_tolerance"]),
+    )
 
 
 def check_truth_section(graph: Any, file: str, lines: dict[tuple[Any, ...], int], errors: list[RecipeError]) -> None:
@@ -122,8 +149,9 @@ def metric_reasons(geom: Any, floor: Floor) -> list[str | None]:
     out: list[str | None] = []
     for i, c in enumerate(geom.categories):
         size = (float(geom.width[i]), float(geom.width[i]), float(geom.height[i]))
-        out.append(check_size(c, size, dims=("height", "extent"), tolerance=floor.size_tolerance,
-                              lower_bounds=("extent",)))
+        out.append(
+            check_size(c, size, dims=("height", "extent"), tolerance=floor.size_tolerance, lower_bounds=("extent",))
+        )
     return out
 
 

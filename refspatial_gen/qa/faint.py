@@ -26,7 +26,8 @@ from refspatial_gen.qa.program import Template
 from refspatial_gen.qa.values import Context, NumberValue, OptionValue, PointValue
 
 METRIC_RELATIONS = frozenset({"distance", "depth"}) | frozenset(
-    n for n in REGISTRY.names() if REGISTRY[n].group == "sizes")
+    n for n in REGISTRY.names() if REGISTRY[n].group == "sizes"
+)
 CHANGES, NO_ANSWER, METRIC = "faint_changes_answer", "faint_no_answer", "metric_withheld"
 
 
@@ -35,7 +36,7 @@ def faint_ids(idx: SceneIndex) -> frozenset[int]:
     hit = idx.__dict__.get("_faint")
     if hit is None:
         hit = idx.__dict__["_faint"] = frozenset(i for i in idx.ids if i not in idx.answer_points)
-    return hit  # type: ignore[no-any-return]
+    return hit
 
 
 def seen_view(idx: SceneIndex) -> SceneIndex:
@@ -47,7 +48,7 @@ def seen_view(idx: SceneIndex) -> SceneIndex:
         facts = [f for f in g.facts if not any(type(a) is int and a in faint for a in f.args)]
         graph = SceneGraph(g.frame_id, [n for n in g.nodes if n.object_id not in faint], facts, g.free_space, g.meta)
         hit = idx.__dict__["_seen_view"] = SceneIndex(idx.frame, graph)
-    return hit  # type: ignore[no-any-return]
+    return hit
 
 
 def objects_in(v: Any, out: set[int]) -> set[int]:

@@ -149,13 +149,16 @@ def _phrase_changes(qa: QAPair, frame: Frame, low: set[int]) -> list[str]:
 def _metric(qa: QAPair, frame: Frame, named: set[int], objs: dict[int, Any], tol: float) -> list[str]:
     scale = frame.meta.get("metric_scale")
     if isinstance(scale, dict) and scale.get("reliable") is False:
-        return [f"metric or size question ({sorted(set(METRIC_RELATIONS) & set(qa.relations))}) on a frame "
-                "whose metric scale is unverified"]
+        return [
+            f"metric or size question ({sorted(set(METRIC_RELATIONS) & set(qa.relations))}) on a frame "
+            "whose metric scale is unverified"
+        ]
     out = []
     for i in sorted(named):
         o = objs[i]
-        why = check_size(o.category, _size(o.box), dims=("height", "extent"), tolerance=tol + 0.02,
-                         lower_bounds=("extent",))
+        why = check_size(
+            o.category, _size(o.box), dims=("height", "extent"), tolerance=tol + 0.02, lower_bounds=("extent",)
+        )
         if why is not None:
             out.append(f"metric or size question names object {i} ({o.category}): {why}")
     return out
