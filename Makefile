@@ -134,7 +134,7 @@ TYPED_PATHS ?= refspatial_gen/core refspatial_gen/graph refspatial_gen/qa
 # every recipe and template file, except recipes that name files made by a set-up step this machine may not
 # have run (a local model folder, catalogs imported into out/assets/); their runs check them before any work
 RECIPE_NEEDS_SETUP = recipes/image_depth_anything.yaml recipes/sim_ycb.yaml recipes/sim_textured.yaml \
-	recipes/photos.yaml recipes/scan_perception.yaml
+	recipes/photos.yaml recipes/scan_perception.yaml recipes/sim_blender.yaml
 RECIPE_LINT ?= $(filter-out $(RECIPE_NEEDS_SETUP),$(wildcard recipes/*.yaml)) recipes/templates/*.yaml
 
 lint: setup-test
