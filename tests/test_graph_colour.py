@@ -32,8 +32,16 @@ def test_teal_is_never_black_and_gets_no_basic_word():
     assert colour_shares(teal).get("black", 0.0) < 0.05
 
 
-@pytest.mark.parametrize("rgb, word", [((190, 25, 30), "red"), ((30, 70, 180), "blue"), ((35, 130, 45), "green"),
-                                       ((20, 20, 22), "black"), ((105, 65, 30), "brown")])
+@pytest.mark.parametrize(
+    "rgb, word",
+    [
+        ((190, 25, 30), "red"),
+        ((30, 70, 180), "blue"),
+        ((35, 130, 45), "green"),
+        ((20, 20, 22), "black"),
+        ((105, 65, 30), "brown"),
+    ],
+)
 def test_clear_colours_keep_their_word_under_shading(rgb, word):
     assert colour_word(shaded(rgb)) == (word, "pixels")
 

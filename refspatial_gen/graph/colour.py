@@ -112,8 +112,11 @@ def _lut() -> tuple[np.ndarray, np.ndarray]:
     L, chroma = lab[:, 0], np.hypot(lab[:, 1], lab[:, 2])
     ach = chroma < ACHROMATIC_CHROMA + ACHROMATIC_SLOPE * L  # dark colours have little chroma (wood)
     band = ach & ((np.abs(L - WHITE_L) < L_BAND) | (np.abs(L - BLACK_L) < L_BAND))
-    code[ach] = np.where(L[ach] >= WHITE_L, VOCABULARY.index("white"),
-                         np.where(L[ach] < BLACK_L, VOCABULARY.index("black"), VOCABULARY.index("gray")))
+    code[ach] = np.where(
+        L[ach] >= WHITE_L,
+        VOCABULARY.index("white"),
+        np.where(L[ach] < BLACK_L, VOCABULARY.index("black"), VOCABULARY.index("gray")),
+    )
     code[band] = -1
     return code, lab[:, 0].copy()
 

@@ -84,8 +84,11 @@ def _from_frame(frame: Frame) -> _Scene:
             ys, xs = np.nonzero(m)  # the mask's bounding box, as the scene graph crops it
             crop = (slice(ys.min(), ys.max() + 1), slice(xs.min(), xs.max() + 1))
             px = mask_pixels(frame.rgb[crop], m[crop])
-            cols.append(colour_word(px, o.attributes.get("color"), o.category, th["colour_min_share"],
-                                    th["colour_margin"], white)[0])
+            cols.append(
+                colour_word(
+                    px, o.attributes.get("color"), o.category, th["colour_min_share"], th["colour_margin"], white
+                )[0]
+            )
         else:
             uv, _ = cam.project(o.box.center[None])
             img_x.append((uv[0, 0] + 0.5) / cam.width)

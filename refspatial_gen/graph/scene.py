@@ -165,8 +165,12 @@ class SceneGeom:
             self.img_centroid[i] = ((xs.mean() + x0 + 0.5) / W, (ys.mean() + y0 + 0.5) / H)
             self.points[i] = valid_point(m, x0, y0, W, H)
             self.colours[i], self.colour_how[i] = colour_word(
-                mask_pixels(rgb[y0:y1, x0:x1], m), o.attributes.get("color"), o.category,
-                self.th.colour_min_share, self.th.colour_margin, white,
+                mask_pixels(rgb[y0:y1, x0:x1], m),
+                o.attributes.get("color"),
+                o.category,
+                self.th.colour_min_share,
+                self.th.colour_margin,
+                white,
             )
             ys, xs = ys + y0, xs + x0
             d = depth[ys, xs]
