@@ -148,4 +148,9 @@ def graph_from_geometry(geom: SceneGeom, free_space: bool = True) -> SceneGraph:
         "source": geom.frame.source,
         "image_size": [geom.W, geom.H],
     }
+    withheld = {"margin": "colour_unnamed_margin", "person_or_animal": "colour_withheld_person_or_animal"}
+    for how in geom.colour_how:  # objects the colour namer left unnamed (run/stats.py truth_counts)
+        if how in withheld:
+            truth = meta.setdefault("truth", {})
+            truth[withheld[how]] = truth.get(withheld[how], 0) + 1
     return SceneGraph(geom.frame.frame_id, nodes, facts, regions, meta)
