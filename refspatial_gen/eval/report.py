@@ -7,13 +7,13 @@ import json
 from pathlib import Path
 from typing import Any
 
-from refspatial_gen.run.report import _figure  # the run report's Agg figure (no pyplot state)
+from refspatial_gen.run.report_plots import agg_figure  # the run report's Agg figure (no pyplot state)
 
 
 def _rates_plot(path: Path, rows: dict[str, dict], title: str, xlabel: str) -> None:
     """Horizontal bars of success rate with 95 % interval whiskers, n beside each bar."""
     keys = list(rows)[::-1]
-    fig = _figure(8, max(1.8, 0.9 + 0.3 * len(keys)))
+    fig = agg_figure(8, max(1.8, 0.9 + 0.3 * len(keys)))
     ax = fig.add_subplot()
     rates = [rows[k]["success_rate"] for k in keys]
     lo = [rows[k]["success_rate"] - rows[k]["ci95"][0] for k in keys]
@@ -30,7 +30,7 @@ def _rates_plot(path: Path, rows: dict[str, dict], title: str, xlabel: str) -> N
 
 def _components_plot(path: Path, comps: dict[str, dict]) -> None:
     keys = [k for k in comps if comps[k]["mean"] is not None]
-    fig = _figure(6, 2.6)
+    fig = agg_figure(6, 2.6)
     ax = fig.add_subplot()
     bars = ax.bar(keys, [comps[k]["mean"] for k in keys], color="#55a868")
     ax.bar_label(bars, labels=[f"{comps[k]['mean']:.3f}\n(w {comps[k]['weight']}, n {comps[k]['n']})" for k in keys], fontsize=8)
