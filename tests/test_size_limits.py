@@ -16,7 +16,6 @@ ALLOWED = {
     "sources/image/annotations.py",
     "sources/image/source.py",
     "sources/image/source.py:build_frame",
-    "sources/scan/frames.py:view_to_frame",
 }
 
 
