@@ -43,11 +43,13 @@ def quat_from_matrix(R: np.ndarray) -> np.ndarray:
 
 def matrix_from_quat(q: np.ndarray) -> np.ndarray:
     w, x, y, z = np.asarray(q, float) / np.linalg.norm(q)
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 def rot_axis(axis: str, angle: float) -> np.ndarray:
@@ -93,8 +95,12 @@ class Part:
             v, f = np.asarray(m.vertices), np.asarray(m.faces)
         else:
             uv, f = _unit_mesh(self.kind)
-            scale = {"box": lambda z: np.asarray(z[:3]), "cylinder": lambda z: np.array([z[0], z[0], z[1]]),
-                     "sphere": lambda z: np.array([z[0]] * 3), "ellipsoid": lambda z: np.asarray(z[:3])}
+            scale = {
+                "box": lambda z: np.asarray(z[:3]),
+                "cylinder": lambda z: np.array([z[0], z[0], z[1]]),
+                "sphere": lambda z: np.array([z[0]] * 3),
+                "ellipsoid": lambda z: np.asarray(z[:3]),
+            }
             if self.kind not in scale:
                 raise ValueError(f"unknown part kind {self.kind}")
             v = uv * scale[self.kind](self.size)
@@ -144,8 +150,8 @@ class AssetGeometry:
         return h.min(axis=0), h.max(axis=0)
 
 
-
 # ----------------------------------------------------------------------------------------- helpers
+
 
 def mesh_part(m: trimesh.Trimesh, role: str = "body", collide: bool = True, visual: bool = True) -> Part:
     return Part("mesh", (), np.zeros(3), np.eye(3), m, role, visual, collide)
@@ -158,13 +164,29 @@ def revolve(profile: list[tuple[float, float]], sections: int = 28) -> trimesh.T
 
 
 def box_part(center, half, role="body", rot=None, visual=True, collide=True) -> Part:
-    return Part("box", tuple(float(h) for h in half), np.asarray(center, float),
-                np.eye(3) if rot is None else rot, None, role, visual, collide)
+    return Part(
+        "box",
+        tuple(float(h) for h in half),
+        np.asarray(center, float),
+        np.eye(3) if rot is None else rot,
+        None,
+        role,
+        visual,
+        collide,
+    )
 
 
 def cyl_part(center, r, half_h, role="body", rot=None, visual=True, collide=True) -> Part:
-    return Part("cylinder", (float(r), float(half_h)), np.asarray(center, float),
-                np.eye(3) if rot is None else rot, None, role, visual, collide)
+    return Part(
+        "cylinder",
+        (float(r), float(half_h)),
+        np.asarray(center, float),
+        np.eye(3) if rot is None else rot,
+        None,
+        role,
+        visual,
+        collide,
+    )
 
 
 def wall_ring(r0: float, z0: float, r1: float, z1: float, thick: float, n: int = 12) -> list[Part]:
@@ -182,8 +204,9 @@ def wall_ring(r0: float, z0: float, r1: float, z1: float, thick: float, n: int =
     return parts
 
 
-def open_vessel(r_bot: float, r_top: float, h: float, wall: float, bottom: float, curve: float = 0.0,
-                 sections: int = 28) -> tuple[list[Part], tuple[np.ndarray, np.ndarray]]:
+def open_vessel(
+    r_bot: float, r_top: float, h: float, wall: float, bottom: float, curve: float = 0.0, sections: int = 28
+) -> tuple[list[Part], tuple[np.ndarray, np.ndarray]]:
     """A cup/bowl/bin: smooth visual mesh, collision base + wall rings; returns parts and cavity."""
     n_mid = 4 if curve > 0 else 1
     outer = []
@@ -202,4 +225,3 @@ def open_vessel(r_bot: float, r_top: float, h: float, wall: float, bottom: float
     rin = max(r_bot - wall, 0.005)
     cav = (np.array([0, 0, (bottom + h) / 2]), np.array([2 * rin, 2 * rin, h - bottom]))
     return parts, cav
-

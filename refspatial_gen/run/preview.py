@@ -16,9 +16,10 @@ from __future__ import annotations
 import html
 import json
 import re
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Iterator, TypeVar
+from typing import TypeVar
 
 import numpy as np
 
@@ -27,9 +28,21 @@ from refspatial_gen.core.serialize import encode_png
 from refspatial_gen.run.preview_checks import answer_points, point_checks, question_frames
 from refspatial_gen.run.preview_render import render_preview
 
-__all__ = ["Pick", "answer_points", "iter_shard_samples", "pick_from_shards", "point_checks", "preview_dir",
-           "question_frames", "render_gallery", "render_preview", "reservoir", "reservoir_pick", "shard_paths",
-           "write_gallery"]
+__all__ = [
+    "Pick",
+    "answer_points",
+    "iter_shard_samples",
+    "pick_from_shards",
+    "point_checks",
+    "preview_dir",
+    "question_frames",
+    "render_gallery",
+    "render_preview",
+    "reservoir",
+    "reservoir_pick",
+    "shard_paths",
+    "write_gallery",
+]
 
 SHARD_SUFFIX = ".mcap"
 T = TypeVar("T")
@@ -79,8 +92,9 @@ def _safe(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9._-]+", "_", name)[:80]
 
 
-def write_gallery(stream: Iterable[tuple[str, Sample]], out: Path, n: int = 24, seed: int = 0,
-                  title: str = "refspatial-gen preview") -> Path:
+def write_gallery(
+    stream: Iterable[tuple[str, Sample]], out: Path, n: int = 24, seed: int = 0, title: str = "refspatial-gen preview"
+) -> Path:
     """Render a seeded sample of `n` QA pairs from `(source_name, Sample)` pairs into `out`; returns index.html."""
     return render_gallery(reservoir_pick(stream, n, seed), out, n, seed, title)
 
@@ -95,16 +109,30 @@ def render_gallery(picks: list[tuple[Pick, Sample]], out: Path, n: int, seed: in
     for k, (pick, sample) in enumerate(picks):
         qa = sample.qa[pick.qa_index]
         if qa.qa_id != pick.qa_id:
-            raise ValueError(f"{pick.source}: sample {pick.sample_id} QA {pick.qa_index} is {qa.qa_id}, expected {pick.qa_id}")
+            raise ValueError(
+                f"{pick.source}: sample {pick.sample_id} QA {pick.qa_index} is {qa.qa_id}, expected {pick.qa_id}"
+            )
         name = f"qa_{k:03d}_{_safe(pick.qa_id)}.png"
         (out / name).write_bytes(encode_png(render_preview(sample, pick.qa_index)))
         checks = point_checks(sample, qa)
-        listing.append({"file": name, "order": pick.order, "source": pick.source, "sample_id": pick.sample_id,
-                        "qa_index": pick.qa_index, "qa_id": pick.qa_id, "family": qa.family, "steps": qa.steps,
-                        "checks": [{"text": t, "ok": ok} for t, ok in checks]})
+        listing.append(
+            {
+                "file": name,
+                "order": pick.order,
+                "source": pick.source,
+                "sample_id": pick.sample_id,
+                "qa_index": pick.qa_index,
+                "qa_id": pick.qa_id,
+                "family": qa.family,
+                "steps": qa.steps,
+                "checks": [{"text": t, "ok": ok} for t, ok in checks],
+            }
+        )
         cards.append(_card(name, pick, qa, listing[-1]["checks"]))
-    (out / "preview.json").write_text(json.dumps({"seed": seed, "n": n, "picked": listing}, indent=1,
-                                                 sort_keys=True, ensure_ascii=False) + "\n", encoding="utf-8")
+    (out / "preview.json").write_text(
+        json.dumps({"seed": seed, "n": n, "picked": listing}, indent=1, sort_keys=True, ensure_ascii=False) + "\n",
+        encoding="utf-8",
+    )
     index = out / "index.html"
     index.write_text(_page(title, seed, cards), encoding="utf-8")
     return index
@@ -115,11 +143,13 @@ def _card(name: str, pick: Pick, qa: QAPair, checks: list[dict]) -> str:
     bad = not all(c["ok"] for c in checks)
     flag = '<span class="bad">point check failed</span>' if bad else ""
     src = f" · {e(pick.source)}" if pick.source else ""
-    return (f'<figure class="card"><a href="{e(name)}"><img src="{e(name)}" loading="lazy" alt="{e(qa.qa_id)}"></a>'
-            f'<figcaption><div class="meta">{e(qa.family)} · {qa.steps} step{"s" if qa.steps != 1 else ""}'
-            f' · {e(", ".join(qa.relations) or "-")} {flag}</div>'
-            f'<div class="q">{e(qa.question)}</div><div class="a">{e(qa.answer)}</div>'
-            f'<div class="id">{e(pick.sample_id)} · {e(pick.qa_id)}{src}</div></figcaption></figure>')
+    return (
+        f'<figure class="card"><a href="{e(name)}"><img src="{e(name)}" loading="lazy" alt="{e(qa.qa_id)}"></a>'
+        f'<figcaption><div class="meta">{e(qa.family)} · {qa.steps} step{"s" if qa.steps != 1 else ""}'
+        f" · {e(', '.join(qa.relations) or '-')} {flag}</div>"
+        f'<div class="q">{e(qa.question)}</div><div class="a">{e(qa.answer)}</div>'
+        f'<div class="id">{e(pick.sample_id)} · {e(pick.qa_id)}{src}</div></figcaption></figure>'
+    )
 
 
 _CSS = """
@@ -137,10 +167,12 @@ main{display:grid;grid-template-columns:repeat(auto-fill,minmax(440px,1fr));gap:
 def _page(title: str, seed: int, cards: list[str]) -> str:
     e = html.escape
     body = "\n".join(cards) if cards else "<p>No QA pairs found.</p>"
-    return (f'<!doctype html>\n<html lang="en"><head><meta charset="utf-8"><title>{e(title)}</title>'
-            f"<style>{_CSS}</style></head><body>\n<header><h1>{e(title)}</h1>"
-            f"<p>{len(cards)} QA pairs, seeded sample (seed {seed}). Click an image for full size.</p></header>\n"
-            f"<main>\n{body}\n</main></body></html>\n")
+    return (
+        f'<!doctype html>\n<html lang="en"><head><meta charset="utf-8"><title>{e(title)}</title>'
+        f"<style>{_CSS}</style></head><body>\n<header><h1>{e(title)}</h1>"
+        f"<p>{len(cards)} QA pairs, seeded sample (seed {seed}). Click an image for full size.</p></header>\n"
+        f"<main>\n{body}\n</main></body></html>\n"
+    )
 
 
 # ---------------------------------------------------------------------------------------------- shards
@@ -149,8 +181,9 @@ def shard_paths(folder: Path) -> list[Path]:
     folder = Path(folder)
     if folder.is_file():
         return [folder]
-    return sorted((p for p in folder.rglob(f"*{SHARD_SUFFIX}") if p.is_file()),
-                  key=lambda p: p.relative_to(folder).as_posix())
+    return sorted(
+        (p for p in folder.rglob(f"*{SHARD_SUFFIX}") if p.is_file()), key=lambda p: p.relative_to(folder).as_posix()
+    )
 
 
 def _shard_names(folder: Path) -> list[tuple[str, Path]]:
@@ -173,8 +206,12 @@ def pick_from_shards(folder: Path, n: int, seed: int) -> list[tuple[Pick, Sample
     from refspatial_gen.shards.reader import ShardError, iter_raw, read_sample_meta
 
     shards = _shard_names(folder)
-    items = ((name, p, m["seq"], m["sample_id"], qi, q["qa_id"])
-             for name, p in shards for m in read_sample_meta(p) for qi, q in enumerate(m["qa"]))
+    items = (
+        (name, p, m["seq"], m["sample_id"], qi, q["qa_id"])
+        for name, p in shards
+        for m in read_sample_meta(p)
+        for qi, q in enumerate(m["qa"])
+    )
     chosen = reservoir(items, n, seed)
     wanted: dict[Path, set[int]] = {}
     for _, (_, p, seq, *_rest) in chosen:
@@ -196,6 +233,6 @@ def preview_dir(folder: Path, out: Path, n: int = 24, seed: int = 0) -> Path:
     """`refspatial-gen preview`: gallery of `n` seeded QA pairs from the shards under `folder`."""
     if not shard_paths(folder):
         raise FileNotFoundError(f"no {SHARD_SUFFIX} shards under {folder}")
-    return render_gallery(pick_from_shards(folder, n, seed), out, n, seed,
-                          title=f"refspatial-gen preview: {Path(folder).resolve().name}")
-
+    return render_gallery(
+        pick_from_shards(folder, n, seed), out, n, seed, title=f"refspatial-gen preview: {Path(folder).resolve().name}"
+    )

@@ -52,8 +52,9 @@ def region_of_answer(struct: dict[str, Any], graph: SceneGraph | None) -> FreeSp
     whose representative point is the answer point."""
     reg = struct.get("region")
     if isinstance(reg, dict) and "polygon_xy" in reg and "z" in reg:
-        return FreeSpaceRegion.from_json({"surface_id": "", "kind": "", "anchors": [], "area": 0.0,
-                                          "point_world": [0, 0, 0], "point": [0, 0], **reg})
+        return FreeSpaceRegion.from_json(
+            {"surface_id": "", "kind": "", "anchors": [], "area": 0.0, "point_world": [0, 0, 0], "point": [0, 0], **reg}
+        )
     if graph is None:
         return None
     pts = answer_points(struct)
@@ -76,7 +77,9 @@ def is_placement(qa: QAPair) -> bool:
 def answer_marks(struct: dict[str, Any]) -> list[dict[str, Any]]:
     """Visual-choice marks (`answer_struct.marks`) and option records carrying a point or a box."""
     out = []
-    for i, m in enumerate(list(struct.get("marks") or []) + [o for o in struct.get("options") or [] if isinstance(o, dict)]):
+    for i, m in enumerate(
+        list(struct.get("marks") or []) + [o for o in struct.get("options") or [] if isinstance(o, dict)]
+    ):
         if isinstance(m, dict):
             out.append({**m, "label": str(m.get("label") or m.get("letter") or chr(ord("A") + i))})
     return out
@@ -142,4 +145,3 @@ def point_checks(sample: Sample, qa: QAPair) -> list[tuple[str, bool]]:
             ok = ok and is_target
         out.append((text, ok))
     return out
-

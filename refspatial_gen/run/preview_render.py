@@ -40,10 +40,12 @@ def _draw_frame(sample: Sample, qa: QAPair, frame: Frame, answer_frame: bool) ->
                 seen[z] = draw.plane_visibility(cam, frame.depth, z)
             return seen[z]
 
-        for r in (graph.free_space if graph is not None else []):
+        for r in graph.free_space if graph is not None else []:
             uv = draw.project_polygon(cam, r.polygon_xy, r.z)
             if uv is not None and (region is None or r is not region):
-                ov.polygon(uv, draw.FREE_SPACE, fill_alpha=0, width=1, visible=visible(float(r.z)))  # outlines: regions overlap
+                ov.polygon(
+                    uv, draw.FREE_SPACE, fill_alpha=0, width=1, visible=visible(float(r.z))
+                )  # outlines: regions overlap
                 used.add("free")
         if region is not None:
             uv = draw.project_polygon(cam, region.polygon_xy, region.z)
@@ -60,7 +62,12 @@ def _draw_frame(sample: Sample, qa: QAPair, frame: Frame, answer_frame: bool) ->
             ov.segments(draw.project_box_edges(cam, obj.box), draw.TARGET_3D, width=2)
             used.add(f"{role}3d")
             if obj.bbox2d is not None:
-                ov.rect(obj.bbox2d, draw.TARGET_2D, width=2, label=f"{'anchor ' if placement else ''}#{obj.id} {obj.category}")
+                ov.rect(
+                    obj.bbox2d,
+                    draw.TARGET_2D,
+                    width=2,
+                    label=f"{'anchor ' if placement else ''}#{obj.id} {obj.category}",
+                )
                 used.add(f"{role}2d")
     view = next((i for i, f in enumerate(sample.frames) if f is frame), -1)
     for m in answer_marks(struct):
@@ -91,11 +98,18 @@ def _draw_frame(sample: Sample, qa: QAPair, frame: Frame, answer_frame: bool) ->
     return ov.rgb(), used
 
 
-_LEGEND = [("answer", draw.ANSWER, "answer point"), ("answer_mark", draw.ANSWER, "correct mark"),
-           ("option", draw.OPTION, "other marks"), ("region", draw.ANSWER_REGION, "answer region"),
-           ("free", draw.FREE_SPACE, "free space"), ("target2d", draw.TARGET_2D, "target 2D box"),
-           ("target3d", draw.TARGET_3D, "target 3D box"), ("anchor2d", draw.TARGET_2D, "anchor 2D box"),
-           ("anchor3d", draw.TARGET_3D, "anchor 3D box"), ("step", draw.KEY_STEP, "trace position")]
+_LEGEND = [
+    ("answer", draw.ANSWER, "answer point"),
+    ("answer_mark", draw.ANSWER, "correct mark"),
+    ("option", draw.OPTION, "other marks"),
+    ("region", draw.ANSWER_REGION, "answer region"),
+    ("free", draw.FREE_SPACE, "free space"),
+    ("target2d", draw.TARGET_2D, "target 2D box"),
+    ("target3d", draw.TARGET_3D, "target 3D box"),
+    ("anchor2d", draw.TARGET_2D, "anchor 2D box"),
+    ("anchor3d", draw.TARGET_3D, "anchor 3D box"),
+    ("step", draw.KEY_STEP, "trace position"),
+]
 
 
 def _struct_text(struct: dict[str, Any]) -> str:
@@ -117,8 +131,11 @@ def render_preview(sample: Sample, qa_index: int) -> np.ndarray:
     width = max(top.shape[1], 640)
     rels = ", ".join(qa.relations) or "-"
     blocks: list[tuple[str, str, draw.RGB]] = [
-        (f"{qa.family} · {qa.template} · {qa.steps} step{'s' if qa.steps != 1 else ''} · relations: {rels}",
-         "bold", (150, 200, 255)),
+        (
+            f"{qa.family} · {qa.template} · {qa.steps} step{'s' if qa.steps != 1 else ''} · relations: {rels}",
+            "bold",
+            (150, 200, 255),
+        ),
         (f"Q: {qa.question}", "regular", (240, 240, 240)),
         (f"A: {qa.answer}", "bold", (255, 140, 140)),
         (f"answer_struct: {_struct_text(qa.answer_struct)}", "mono", (180, 180, 180)),
@@ -126,21 +143,29 @@ def render_preview(sample: Sample, qa_index: int) -> np.ndarray:
     if qa.trace:
         blocks.append((f"trace:\n{qa.trace}", "mono", (255, 200, 120)))
     if qa.key_steps:
-        ks = "\n".join(f"s{k} [{s.type}] {s.phrase}: {', '.join(f'{v:.3f}' for v in s.value)}"
-                       for k, s in enumerate(qa.key_steps, 1))
+        ks = "\n".join(
+            f"s{k} [{s.type}] {s.phrase}: {', '.join(f'{v:.3f}' for v in s.value)}"
+            for k, s in enumerate(qa.key_steps, 1)
+        )
         blocks.append((f"key steps:\n{ks}", "mono", (255, 200, 120)))
     checks = point_checks(sample, qa)
     if checks:
         bad = not all(ok for _, ok in checks)
-        blocks.append(("preview check:\n" + "\n".join(t for t, _ in checks), "mono",
-                       (255, 90, 90) if bad else (140, 230, 140)))
+        blocks.append(
+            ("preview check:\n" + "\n".join(t for t, _ in checks), "mono", (255, 90, 90) if bad else (140, 230, 140))
+        )
     if qa.checks:
         blocks.append(("generator checks passed: " + ", ".join(qa.checks), "regular", (170, 170, 170)))
     W, H = qa.image_size
-    blocks.append((f"sample {sample.sample_id} · qa {qa.qa_id} · frames {', '.join(f.frame_id for f in frames)}"
-                   f" · image {W}x{H}", "regular", (140, 140, 140)))
+    blocks.append(
+        (
+            f"sample {sample.sample_id} · qa {qa.qa_id} · frames {', '.join(f.frame_id for f in frames)}"
+            f" · image {W}x{H}",
+            "regular",
+            (140, 140, 140),
+        )
+    )
     leg = draw.legend([(c, label) for key, c, label in _LEGEND if key in used], width) if used else None
     panel = draw.text_panel(blocks, width)
     out = draw.vstack(top, leg) if leg is not None else top
     return draw.vstack(out, panel)
-

@@ -18,24 +18,49 @@ from pathlib import Path
 from typing import Any
 
 from refspatial_gen.run.report_data import (
-    HEATMAP_BINS, STAGES, check_stats, derived, location_bias, silent_families, summary_lines,
+    HEATMAP_BINS,
+    STAGES,
+    check_stats,
+    derived,
+    location_bias,
+    silent_families,
+    summary_lines,
 )
 from refspatial_gen.run.report_html import render_html
 from refspatial_gen.run.report_plots import write_plots
 
-__all__ = ["HEATMAP_BINS", "REPORT_VERSION", "STAGES", "build_report", "check_stats", "derived", "load_report",
-           "location_bias", "render_html", "silent_families", "summary_lines", "write_plots", "write_report"]
+__all__ = [
+    "HEATMAP_BINS",
+    "REPORT_VERSION",
+    "STAGES",
+    "build_report",
+    "check_stats",
+    "derived",
+    "load_report",
+    "location_bias",
+    "render_html",
+    "silent_families",
+    "summary_lines",
+    "write_plots",
+    "write_report",
+]
 
 REPORT_VERSION = 1
 
 
-
-def build_report(stats: dict[str, Any], run_log: dict[str, Any], recipe_info: dict[str, Any],
-                 plots: dict[str, str] | None = None) -> dict[str, Any]:
+def build_report(
+    stats: dict[str, Any], run_log: dict[str, Any], recipe_info: dict[str, Any], plots: dict[str, str] | None = None
+) -> dict[str, Any]:
     """The report.json content (checks `stats` first)."""
     check_stats(stats)
-    return {"report_version": REPORT_VERSION, "stats": stats, "run_log": dict(run_log), "recipe": dict(recipe_info),
-            "derived": derived(stats, run_log, recipe_info), "plots": dict(sorted((plots or {}).items()))}
+    return {
+        "report_version": REPORT_VERSION,
+        "stats": stats,
+        "run_log": dict(run_log),
+        "recipe": dict(recipe_info),
+        "derived": derived(stats, run_log, recipe_info),
+        "plots": dict(sorted((plots or {}).items())),
+    }
 
 
 def write_report(out_dir: Path, stats: dict[str, Any], run_log: dict[str, Any], recipe_info: dict[str, Any]) -> Path:
@@ -46,8 +71,9 @@ def write_report(out_dir: Path, stats: dict[str, Any], run_log: dict[str, Any], 
     for old in report_dir.glob("*.png"):  # a re-run must not leave plots of the previous one
         old.unlink()
     report["plots"] = write_plots(report_dir, stats, run_log, report["derived"]["answer_location"])
-    (report_dir / "report.json").write_text(json.dumps(report, sort_keys=True, indent=1, ensure_ascii=False) + "\n",
-                                            encoding="utf-8")
+    (report_dir / "report.json").write_text(
+        json.dumps(report, sort_keys=True, indent=1, ensure_ascii=False) + "\n", encoding="utf-8"
+    )
     page = report_dir / "report.html"
     page.write_text(render_html(report), encoding="utf-8")
     return page
@@ -59,4 +85,3 @@ def load_report(path: Path) -> dict[str, Any]:
     if p.is_dir():
         p = p / "report" / "report.json" if (p / "report" / "report.json").is_file() else p / "report.json"
     return json.loads(p.read_text(encoding="utf-8"))
-

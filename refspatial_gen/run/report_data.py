@@ -4,16 +4,24 @@ location bias, silent families) and the plain-text summary `refspatial-gen stats
 from __future__ import annotations
 
 import math
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 HEATMAP_BINS = 20
 
 STAGES = ("load", "graph", "qa", "write")
 
 
-_REQUIRED = {"samples": int, "qa_pairs": int, "by_relation": dict, "by_family": dict, "by_steps": dict,
-             "by_source": dict, "dropped": dict, "answer_heatmap": list}
-
+_REQUIRED = {
+    "samples": int,
+    "qa_pairs": int,
+    "by_relation": dict,
+    "by_family": dict,
+    "by_steps": dict,
+    "by_source": dict,
+    "dropped": dict,
+    "answer_heatmap": list,
+}
 
 
 # ---------------------------------------------------------------------------------------------- checks
@@ -60,8 +68,13 @@ def location_bias(heatmap: Sequence[Sequence[int]]) -> dict[str, Any]:
             thirds[min(2, int(centre[i] * 3))][min(2, int(centre[j] * 3))] += heatmap[i][j]
     ent = -sum((v / total) * math.log(v / total) for r in heatmap for v in r if v > 0) / math.log(n * n)
     r4 = lambda v: round(v, 4)  # noqa: E731
-    return {"points": total, "mean": [r4(mx), r4(my)], "std": [r4(sx), r4(sy)],
-            "thirds": [[r4(v / total) for v in row] for row in thirds], "entropy": r4(ent)}
+    return {
+        "points": total,
+        "mean": [r4(mx), r4(my)],
+        "std": [r4(sx), r4(sy)],
+        "thirds": [[r4(v / total) for v in row] for row in thirds],
+        "entropy": r4(ent),
+    }
 
 
 def sorted_counts(d: dict[str, int]) -> list[tuple[str, int]]:
@@ -70,7 +83,10 @@ def sorted_counts(d: dict[str, int]) -> list[tuple[str, int]]:
 
 
 def steps_counts(d: dict[str, int]) -> list[tuple[str, int]]:
-    keys = sorted(set(d) | {str(i) for i in range(1, 6)}, key=lambda k: (not str(k).isdigit(), int(k) if str(k).isdigit() else 0, str(k)))
+    keys = sorted(
+        set(d) | {str(i) for i in range(1, 6)},
+        key=lambda k: (not str(k).isdigit(), int(k) if str(k).isdigit() else 0, str(k)),
+    )
     return [(str(k), int(d.get(k, 0))) for k in keys]
 
 
@@ -83,7 +99,9 @@ def silent_families(stats: dict[str, Any], recipe_info: dict[str, Any] | None) -
     return sorted(f for f, w in fams.items() if float(w or 0) > 0 and not stats["by_family"].get(f))
 
 
-def derived(stats: dict[str, Any], run_log: dict[str, Any], recipe_info: dict[str, Any] | None = None) -> dict[str, Any]:
+def derived(
+    stats: dict[str, Any], run_log: dict[str, Any], recipe_info: dict[str, Any] | None = None
+) -> dict[str, Any]:
     """Figures computed from the inputs that the page shows (also stored in report.json)."""
     dropped = sum(stats["dropped"].values())
     units = int(stats.get("units") or 0)
@@ -98,32 +116,40 @@ def derived(stats: dict[str, Any], run_log: dict[str, Any], recipe_info: dict[st
     }
 
 
-
 # ---------------------------------------------------------------------------------------------- text
 def fmt_rate(v: Any, unit: str = "/s") -> str:
     return "-" if v is None else f"{float(v):,.2f}{unit}"
 
 
-def summary_lines(stats: dict[str, Any], run_log: dict[str, Any] | None = None,
-                  recipe_info: dict[str, Any] | None = None) -> list[str]:
+def summary_lines(
+    stats: dict[str, Any], run_log: dict[str, Any] | None = None, recipe_info: dict[str, Any] | None = None
+) -> list[str]:
     """The header figures as plain text lines (what `stats` prints and the page's summary shows)."""
     run_log = run_log or {}
     d = derived(stats, run_log, recipe_info)
-    lines = [f"samples     {stats['samples']:,}", f"QA pairs    {stats['qa_pairs']:,}"
-             + (f"  ({d['qa_per_sample']} per sample)" if d["qa_per_sample"] is not None else "")]
+    lines = [
+        f"samples     {stats['samples']:,}",
+        f"QA pairs    {stats['qa_pairs']:,}"
+        + (f"  ({d['qa_per_sample']} per sample)" if d["qa_per_sample"] is not None else ""),
+    ]
     drop = f"dropped     {d['dropped_total']:,}"
     if d["drop_rate"] is not None:
         drop += f" of {stats.get('units', 0):,} units ({100 * d['drop_rate']:.1f}%)"
     lines.append(drop)
     if run_log:
-        lines.append(f"QA/s        {fmt_rate(run_log.get('qa_per_s'), '')}   units/s {fmt_rate(run_log.get('units_per_s'), '')}")
-        lines.append(f"wall time   {float(run_log.get('wall_seconds') or 0):,.1f} s on {run_log.get('workers', '?')} "
-                     f"worker(s), executor {run_log.get('executor', '?')}")
+        lines.append(
+            f"QA/s        {fmt_rate(run_log.get('qa_per_s'), '')}   units/s {fmt_rate(run_log.get('units_per_s'), '')}"
+        )
+        lines.append(
+            f"wall time   {float(run_log.get('wall_seconds') or 0):,.1f} s on {run_log.get('workers', '?')} "
+            f"worker(s), executor {run_log.get('executor', '?')}"
+        )
     if d["silent_families"]:
         lines.append(f"warning     families that produced no QA pair: {', '.join(d['silent_families'])}")
     loc = d["answer_location"]
     if loc["points"]:
-        lines.append(f"answers     mean point ({loc['mean'][0]:.3f}, {loc['mean'][1]:.3f}), "
-                     f"spread entropy {loc['entropy']:.2f} (1 = uniform)")
+        lines.append(
+            f"answers     mean point ({loc['mean'][0]:.3f}, {loc['mean'][1]:.3f}), "
+            f"spread entropy {loc['entropy']:.2f} (1 = uniform)"
+        )
     return lines
-

@@ -39,8 +39,15 @@ def _hbar(path: Path, items: list[tuple[str, int]], title: str, xlabel: str, col
     _save(fig, path)
 
 
-def _vbar(path: Path, items: list[tuple[str, int | float]], title: str, xlabel: str, ylabel: str, color: str,
-          fmt: str = "{:,}") -> None:
+def _vbar(
+    path: Path,
+    items: list[tuple[str, int | float]],
+    title: str,
+    xlabel: str,
+    ylabel: str,
+    color: str,
+    fmt: str = "{:,}",
+) -> None:
     fig = agg_figure(6, 3.2)
     ax = fig.add_subplot()
     vals = [v for _, v in items]
@@ -86,8 +93,12 @@ def _stages(path: Path, stage_seconds: dict[str, float]) -> None:
     ax = fig.add_subplot()
     bars = ax.barh(range(len(keys)), vals[::-1], color="#6a51a3")
     ax.set_yticks(range(len(keys)), keys[::-1])
-    ax.bar_label(bars, labels=[f"{v:,.1f} s ({100 * v / total:.0f}%)" if total > 0 else f"{v:.1f} s" for v in vals[::-1]],
-                 padding=3, fontsize=8)
+    ax.bar_label(
+        bars,
+        labels=[f"{v:,.1f} s ({100 * v / total:.0f}%)" if total > 0 else f"{v:.1f} s" for v in vals[::-1]],
+        padding=3,
+        fontsize=8,
+    )
     ax.set_xlim(0, max(vals) * 1.3 if vals and max(vals) > 0 else 1)
     ax.set_xlabel("seconds (summed over workers)")
     ax.set_title("Time per stage", fontsize=11, loc="left")
@@ -112,7 +123,9 @@ def _throughput(path: Path, run_log: dict[str, Any]) -> None:
     _save(fig, path)
 
 
-def write_plots(report_dir: Path, stats: dict[str, Any], run_log: dict[str, Any], bias: dict[str, Any]) -> dict[str, str]:
+def write_plots(
+    report_dir: Path, stats: dict[str, Any], run_log: dict[str, Any], bias: dict[str, Any]
+) -> dict[str, str]:
     """Every plot that has data; returns {plot key: file name}. Empty inputs get no plot (the page says so)."""
     plots: dict[str, str] = {}
 
@@ -122,12 +135,28 @@ def write_plots(report_dir: Path, stats: dict[str, Any], run_log: dict[str, Any]
         plots[key] = name
 
     if stats["by_relation"]:
-        add("qa_by_relation", _hbar, sorted_counts(stats["by_relation"]), "QA pairs per relation", "QA pairs", "#2171b5")
+        add(
+            "qa_by_relation", _hbar, sorted_counts(stats["by_relation"]), "QA pairs per relation", "QA pairs", "#2171b5"
+        )
     if stats["by_family"]:
-        add("qa_by_family", _hbar, sorted_counts(stats["by_family"]), "QA pairs per question family", "QA pairs", "#238b45")
+        add(
+            "qa_by_family",
+            _hbar,
+            sorted_counts(stats["by_family"]),
+            "QA pairs per question family",
+            "QA pairs",
+            "#238b45",
+        )
     if any(stats["by_steps"].values()):
-        add("qa_by_steps", _vbar, steps_counts(stats["by_steps"]), "QA pairs per step count", "reasoning steps",
-            "QA pairs", "#fd8d3c")
+        add(
+            "qa_by_steps",
+            _vbar,
+            steps_counts(stats["by_steps"]),
+            "QA pairs per step count",
+            "reasoning steps",
+            "QA pairs",
+            "#fd8d3c",
+        )
     if stats["by_source"]:
         add("qa_by_source", _hbar, sorted_counts(stats["by_source"]), "QA pairs per source", "QA pairs", "#807dba")
     if bias["points"]:
@@ -139,4 +168,3 @@ def write_plots(report_dir: Path, stats: dict[str, Any], run_log: dict[str, Any]
     if run_log.get("units_per_s") is not None or run_log.get("qa_per_s") is not None:
         add("throughput", _throughput, run_log)
     return plots
-

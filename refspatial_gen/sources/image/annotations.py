@@ -1,10 +1,10 @@
 """Annotated photo collections -> one in-memory index: images, their object annotations, optional depth/K.
 
-Readers (read_coco.py, read_boxes.py): COCO instances (polygons, compressed and uncompressed RLE), COCO panoptic (PNG + segments),
-OpenImages (box CSV, optional mask CSV + mask PNGs) and SUN RGB-D 2D boxes (folders with image.jpg,
-depth.png, annotation.json; only the 2D boxes and K are read, never the 3D ground truth). Masks are
-materialised per image, lazily, by `annotation_mask` (masks.py), which also validates that the annotation lies
-inside the image (else the whole image is dropped: `annotation_out_of_bounds`).
+Readers (read_coco.py, read_boxes.py): COCO instances (polygons, compressed and uncompressed RLE), COCO
+panoptic (PNG + segments), OpenImages (box CSV, optional mask CSV + mask PNGs) and SUN RGB-D 2D boxes
+(folders with image.jpg, depth.png, annotation.json; only the 2D boxes and K are read, never the 3D ground
+truth). Masks are materialised per image, lazily, by `annotation_mask` (masks.py), which also validates
+that the annotation lies inside the image (else the whole image is dropped: `annotation_out_of_bounds`).
 """
 
 from __future__ import annotations
@@ -19,23 +19,57 @@ from refspatial_gen.sources.image.masks import BOUNDS_TOLERANCE_PX, annotation_m
 from refspatial_gen.sources.image.read_boxes import read_openimages, read_sunrgbd
 from refspatial_gen.sources.image.read_coco import is_coco, is_panoptic, read_coco, read_coco_panoptic
 from refspatial_gen.sources.image.records import (
-    IMAGE_EXTS, Annotation, Collection, ImageRecord, csv_head, json_files, peek_json,
+    IMAGE_EXTS,
+    Annotation,
+    Collection,
+    ImageRecord,
+    csv_head,
+    json_files,
+    peek_json,
 )
 
-__all__ = ["BOUNDS_TOLERANCE_PX", "FORMATS", "GROUND_STUFF_PREFIXES", "IMAGE_EXTS", "READERS", "SUPPORT_STUFF_PREFIXES",
-           "Annotation", "Collection", "ImageRecord", "annotation_mask", "detect_format", "list_image_files",
-           "load_collection", "read_coco", "read_coco_panoptic", "read_openimages", "read_panoptic_ids", "read_sunrgbd",
-           "resolved_bbox"]
+__all__ = [
+    "BOUNDS_TOLERANCE_PX",
+    "FORMATS",
+    "GROUND_STUFF_PREFIXES",
+    "IMAGE_EXTS",
+    "READERS",
+    "SUPPORT_STUFF_PREFIXES",
+    "Annotation",
+    "Collection",
+    "ImageRecord",
+    "annotation_mask",
+    "detect_format",
+    "list_image_files",
+    "load_collection",
+    "read_coco",
+    "read_coco_panoptic",
+    "read_openimages",
+    "read_panoptic_ids",
+    "read_sunrgbd",
+    "resolved_bbox",
+]
 
 FORMATS = ("auto", "coco", "coco_panoptic", "openimages", "sunrgbd")
 
 
 # COCO panoptic "stuff" classes that are ground (objects standing there meet the ground plane) or supports
-GROUND_STUFF_PREFIXES = ("floor", "road", "pavement", "grass", "dirt", "sand", "playingfield", "snow",
-                         "gravel", "rug", "platform", "railroad")
+GROUND_STUFF_PREFIXES = (
+    "floor",
+    "road",
+    "pavement",
+    "grass",
+    "dirt",
+    "sand",
+    "playingfield",
+    "snow",
+    "gravel",
+    "rug",
+    "platform",
+    "railroad",
+)
 
 SUPPORT_STUFF_PREFIXES = ("table", "counter", "shelf", "desk")
-
 
 
 def detect_format(root: Path) -> str:
@@ -64,15 +98,16 @@ def detect_format(root: Path) -> str:
     raise InputError(str(root), "no COCO / COCO panoptic / OpenImages / SUN RGB-D annotations found")
 
 
-
-READERS = {"coco": read_coco, "coco_panoptic": read_coco_panoptic, "openimages": read_openimages,
-           "sunrgbd": read_sunrgbd}
-
+READERS = {
+    "coco": read_coco,
+    "coco_panoptic": read_coco_panoptic,
+    "openimages": read_openimages,
+    "sunrgbd": read_sunrgbd,
+}
 
 
 def _mtime_key(root: Path) -> tuple:
     return tuple(sorted((p.name, p.stat().st_mtime_ns) for p in root.iterdir() if p.is_file()))
-
 
 
 @lru_cache(maxsize=8)
@@ -80,9 +115,9 @@ def _load_cached(root: str, fmt: str, annotations: str | None, images_dir: str |
     return READERS[fmt](Path(root), annotations, images_dir)
 
 
-
-def load_collection(root: str | Path, fmt: str = "auto", annotations: str | None = None,
-                    images_dir: str | None = None) -> Collection:
+def load_collection(
+    root: str | Path, fmt: str = "auto", annotations: str | None = None, images_dir: str | None = None
+) -> Collection:
     """Read (once per process; cached on the folder's file mtimes) an annotated collection."""
     root = Path(root).resolve()
     if fmt == "auto":
@@ -92,7 +127,5 @@ def load_collection(root: str | Path, fmt: str = "auto", annotations: str | None
     return _load_cached(str(root), fmt, annotations, images_dir, _mtime_key(root))
 
 
-
 def list_image_files(root: Path) -> list[Path]:
     return sorted(p for p in root.iterdir() if p.suffix.lower() in IMAGE_EXTS and os.path.isfile(p))
-

@@ -42,8 +42,9 @@ class BoxMasks:
     labels: np.ndarray | None = None  # (H, W) segment labels, 0 = no depth / depth edge
 
 
-def plane_labels(world: np.ndarray, valid: np.ndarray, support_z: list[float],
-                 walls: list[tuple[np.ndarray, float]], band: float) -> np.ndarray:
+def plane_labels(
+    world: np.ndarray, valid: np.ndarray, support_z: list[float], walls: list[tuple[np.ndarray, float]], band: float
+) -> np.ndarray:
     """(H, W) int: k+1 where the pixel lies within `band` of plane k (horizontal planes, then walls)."""
     out = np.zeros(valid.shape, np.int32)
     k = 0
@@ -66,8 +67,9 @@ def fill_small_holes(depth: np.ndarray, size: int = 5) -> np.ndarray:
     return np.where(depth > 0, depth, np.where(np.isfinite(near), near, 0.0)).astype(np.float32)
 
 
-def _attach_edges(lab: np.ndarray, depth: np.ndarray, rel_jump: float = 0.03, abs_jump: float = 0.05,
-                  rounds: int = 2) -> np.ndarray:
+def _attach_edges(
+    lab: np.ndarray, depth: np.ndarray, rel_jump: float = 0.03, abs_jump: float = 0.05, rounds: int = 2
+) -> np.ndarray:
     """Pixels on a depth jump (label 0 with depth) join the neighbouring segment whose depth they match:
     the jump lies between two surfaces, and each side's pixels belong to that side (a thin lamp stem
     against a far wall is mostly such pixels)."""
@@ -123,8 +125,16 @@ def _pixel_rect(bb: tuple[float, float, float, float], W: int, H: int) -> tuple[
     return (max(0, int(np.floor(x0))), max(0, int(np.floor(y0))), min(W, int(np.ceil(x1))), min(H, int(np.ceil(y1))))
 
 
-def _owner_map(lab: np.ndarray, depth: np.ndarray, rects: list[tuple[int, int, int, int]], min_share: float,
-               min_single: float, tie: float, min_exclusive: float, min_segment: int) -> np.ndarray:
+def _owner_map(
+    lab: np.ndarray,
+    depth: np.ndarray,
+    rects: list[tuple[int, int, int, int]],
+    min_share: float,
+    min_single: float,
+    tie: float,
+    min_exclusive: float,
+    min_segment: int,
+) -> np.ndarray:
     """(H, W) int: the box each pixel is given to (-1: none). See the module docstring."""
     H, W = lab.shape
     nb, nseg = len(rects), int(lab.max()) + 1
@@ -195,11 +205,24 @@ def _spill(lo: np.ndarray, hi: np.ndarray, bb: tuple[float, float, float, float]
     return float(max(0.0, (x0 - u.min()) / bw, (u.max() - x1) / bw, (y0 - v.min()) / bh, (v.max() - y1) / bh))
 
 
-def assign_boxes(depth: np.ndarray, world: np.ndarray, boxes: list[tuple[float, float, float, float]],
-                 support_z: list[float], walls: list[tuple[np.ndarray, float]], band: float = 0.03,
-                 min_share: float = 0.8, min_single: float = 0.5, tie: float = 0.05, min_exclusive: float = 0.1,
-                 join_gap: float = 0.25, join_rel: float = 0.5, join_px: int = 4, min_segment: int = 20,
-                 cam=None, max_spill: float = 0.15) -> BoxMasks:
+def assign_boxes(
+    depth: np.ndarray,
+    world: np.ndarray,
+    boxes: list[tuple[float, float, float, float]],
+    support_z: list[float],
+    walls: list[tuple[np.ndarray, float]],
+    band: float = 0.03,
+    min_share: float = 0.8,
+    min_single: float = 0.5,
+    tie: float = 0.05,
+    min_exclusive: float = 0.1,
+    join_gap: float = 0.25,
+    join_rel: float = 0.5,
+    join_px: int = 4,
+    min_segment: int = 20,
+    cam=None,
+    max_spill: float = 0.15,
+) -> BoxMasks:
     """Masks for box annotations `boxes` (x0, y0, x1, y1 continuous pixels) over a metric `depth`
     (0 = none) whose world points (z up) are `world` (H, W, 3). See the module docstring."""
     H, W = depth.shape
@@ -235,9 +258,18 @@ class _Join:
     max_spill: float
 
 
-def _box_mask(i: int, rect: tuple[int, int, int, int], bb: tuple[float, float, float, float], lab: np.ndarray,
-              owner: np.ndarray, inner: np.ndarray, loose: np.ndarray, depth: np.ndarray, world: np.ndarray,
-              join: _Join) -> tuple[np.ndarray, dict]:
+def _box_mask(
+    i: int,
+    rect: tuple[int, int, int, int],
+    bb: tuple[float, float, float, float],
+    lab: np.ndarray,
+    owner: np.ndarray,
+    inner: np.ndarray,
+    loose: np.ndarray,
+    depth: np.ndarray,
+    world: np.ndarray,
+    join: _Join,
+) -> tuple[np.ndarray, dict]:
     """Box i's mask: its best owned segment (weighted towards the box centre), the owned segments that join
     it, and the isolated pixels of its private area at the object's depth; and its notes."""
     H, W = depth.shape
@@ -264,7 +296,7 @@ def _box_mask(i: int, rect: tuple[int, int, int, int], bb: tuple[float, float, f
     big = [int(cand[0])] + [int(k) for k in cand[1:] if count[k] >= join.min_segment]
     ext = {}
     for k in big:  # robust 3D extents of the main segment and of those big enough to join
-        p = pts[order[starts[k]:starts[k + 1]]]
+        p = pts[order[starts[k] : starts[k + 1]]]
         ext[k] = (np.percentile(p, 2, axis=0), np.percentile(p, 98, axis=0))
     chosen = _join_segments(big, ext, inv, bb, join)
     m = np.zeros((H, W), bool)
@@ -279,8 +311,13 @@ def _box_mask(i: int, rect: tuple[int, int, int, int], bb: tuple[float, float, f
     return m, note
 
 
-def _join_segments(big: list[int], ext: dict[int, tuple[np.ndarray, np.ndarray]], inv: np.ndarray,
-                   bb: tuple[float, float, float, float], join: _Join) -> list[int]:
+def _join_segments(
+    big: list[int],
+    ext: dict[int, tuple[np.ndarray, np.ndarray]],
+    inv: np.ndarray,
+    bb: tuple[float, float, float, float],
+    join: _Join,
+) -> list[int]:
     """The best segment `big[0]`, then (transitively) every other one that touches the chosen ones in the
     image, lies near them in 3D and keeps the 3D extent on the 2D box `bb`."""
     import cv2
@@ -303,7 +340,8 @@ def _join_segments(big: list[int], ext: dict[int, tuple[np.ndarray, np.ndarray]]
             if float(np.linalg.norm(gap)) > limit or not bool(np.any(near & (inv == k))):
                 continue
             if cam is not None and _spill(np.minimum(lo, slo), np.maximum(hi, shi), bb, cam) > max(
-                    join.max_spill, _spill(lo, hi, bb, cam)):
+                join.max_spill, _spill(lo, hi, bb, cam)
+            ):
                 continue
             chosen.append(k)
             rest.remove(k)

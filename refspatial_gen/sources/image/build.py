@@ -44,7 +44,6 @@ def decode_rgb(path: Path) -> np.ndarray:
     return np.ascontiguousarray(rgb)
 
 
-
 @dataclass
 class _Annotated:
     """A photo's annotations sorted out: object candidates, crowd categories, ground and support stuff."""
@@ -57,8 +56,13 @@ class _Annotated:
     live: list[F.Candidate] = field(default_factory=list)
 
 
-def build_frame(coll: Collection, rec: ImageRecord, rng: np.random.Generator, cfg: dict[str, Any],
-                timings: dict[str, float] | None = None) -> Frame:
+def build_frame(
+    coll: Collection,
+    rec: ImageRecord,
+    rng: np.random.Generator,
+    cfg: dict[str, Any],
+    timings: dict[str, float] | None = None,
+) -> Frame:
     """One annotated photo -> one Frame (or DropUnit)."""
     cfg = with_defaults(cfg)
     tm = timings if timings is not None else {}
@@ -66,7 +70,9 @@ def build_frame(coll: Collection, rec: ImageRecord, rng: np.random.Generator, cf
     rgb = decode_rgb(rec.file)
     H, W = rgb.shape[:2]
     if (rec.width is not None and rec.width != W) or (rec.height is not None and rec.height != H):
-        raise DropUnit("image_size_mismatch", f"{rec.file.name}: decoded {W}x{H}, annotation says {rec.width}x{rec.height}")
+        raise DropUnit(
+            "image_size_mismatch", f"{rec.file.name}: decoded {W}x{H}, annotation says {rec.width}x{rec.height}"
+        )
     tm["decode"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -126,7 +132,11 @@ def _annotated(rec: ImageRecord, W: int, H: int, cfg: dict[str, Any]) -> _Annota
         if wanted is not None and ann.category not in wanted:
             out.ignored[ann.category] = out.ignored.get(ann.category, 0) + 1
             continue
-        bb = ann.bbox if not rec.meta.get("normalised_boxes") else (ann.bbox[0] * W, ann.bbox[1] * H, ann.bbox[2] * W, ann.bbox[3] * H)
+        bb = (
+            ann.bbox
+            if not rec.meta.get("normalised_boxes")
+            else (ann.bbox[0] * W, ann.bbox[1] * H, ann.bbox[2] * W, ann.bbox[3] * H)
+        )
         c = F.Candidate(ann.ann_id, ann.category, mask, tuple(float(x) for x in bb), is_seg)
         area = int(mask.sum())
         if area < cfg["min_mask_area"] or area < cfg["min_mask_fraction"] * W * H:
@@ -144,8 +154,17 @@ def _annotated(rec: ImageRecord, W: int, H: int, cfg: dict[str, Any]) -> _Annota
     return out
 
 
-def _camera_prior(rec: ImageRecord, intr: Intrinsics, ann: _Annotated, cfg: dict[str, Any], est_name: str, est: Any,
-                  truth: dict[str, int], H: int, W: int) -> tuple[Any, float, float, dict[str, Any], dict[int, int]]:
+def _camera_prior(
+    rec: ImageRecord,
+    intr: Intrinsics,
+    ann: _Annotated,
+    cfg: dict[str, Any],
+    est_name: str,
+    est: Any,
+    truth: dict[str, int],
+    H: int,
+    W: int,
+) -> tuple[Any, float, float, dict[str, Any], dict[int, int]]:
     """What the depth estimator is told: the camera prior (for geometric depth, fitted to the photo's objects
     of known size), masks with ids; also the camera height and pitch, the metric-scale verdict and the ids."""
     from refspatial_gen.depth import CameraPrior
@@ -160,8 +179,9 @@ def _camera_prior(rec: ImageRecord, intr: Intrinsics, ann: _Annotated, cfg: dict
 
         # every annotated object may testify, also those too small to become objects (distant people
         # near the horizon are what pins the pitch down)
-        fit = fit_photo_camera([c for c in ann.cands if c.reason in (None, "too_small")], H, W, intr.fy, intr.cy,
-                               cam_h, pitch, cfg)
+        fit = fit_photo_camera(
+            [c for c in ann.cands if c.reason in (None, "too_small")], H, W, intr.fy, intr.cy, cam_h, pitch, cfg
+        )
         cam_h, pitch = fit.camera_height, fit.pitch
         metric_scale = fit.meta()
     elif est_name != "provided":
@@ -174,10 +194,21 @@ def _camera_prior(rec: ImageRecord, intr: Intrinsics, ann: _Annotated, cfg: dict
         depth_path = str(rec.depth_file if rec.depth_file is not None else est.resolve_path(rec.file))
     live, ground = ann.live, ann.ground
     ids = {id(c): k + 1 for k, c in enumerate(live)}
-    prior = CameraPrior(W, H, intr.fx, intr.fy, intr.cx, intr.cy, cam_h, pitch,
-                        depth_path=depth_path, depth_scale=rec.meta.get("depth_scale"),
-                        masks=[(ids[id(c)], c.mask) for c in live],
-                        categories={ids[id(c)]: c.category for c in live}, ground_mask=ground if ground.any() else None)
+    prior = CameraPrior(
+        W,
+        H,
+        intr.fx,
+        intr.fy,
+        intr.cx,
+        intr.cy,
+        cam_h,
+        pitch,
+        depth_path=depth_path,
+        depth_scale=rec.meta.get("depth_scale"),
+        masks=[(ids[id(c)], c.mask) for c in live],
+        categories={ids[id(c)]: c.category for c in live},
+        ground_mask=ground if ground.any() else None,
+    )
     return prior, cam_h, pitch, metric_scale, ids
 
 
@@ -191,8 +222,10 @@ def _contact_notes(live: list[F.Candidate], ids: dict[int, int], res: Any, cfg: 
             kind, _, other = str(note.get("contact")).partition(":")
             if kind in ("support", "behind") and other.isdigit():  # the estimator's id -> the annotation
                 o = live[int(other) - 1]
-                c.provenance["rests_on" if kind == "support" else "behind"] = {"annotation_id": o.ann_id,
-                                                                               "category": o.category}
+                c.provenance["rests_on" if kind == "support" else "behind"] = {
+                    "annotation_id": o.ann_id,
+                    "category": o.category,
+                }
             if note.get("truncated"):
                 c.provenance["contact_truncated"] = True
                 if not cfg["keep_truncated_contacts"]:
@@ -201,8 +234,16 @@ def _contact_notes(live: list[F.Candidate], ids: dict[int, int], res: Any, cfg: 
                 F.drop(c, note.get("reason", "no_ground_contact"))
 
 
-def _world_frame(depth: np.ndarray, intr: Intrinsics, prior: Any, cam_h: float, pitch: float, est_name: str,
-                 cfg: dict[str, Any], rng: np.random.Generator) -> tuple[Any, Camera]:
+def _world_frame(
+    depth: np.ndarray,
+    intr: Intrinsics,
+    prior: Any,
+    cam_h: float,
+    pitch: float,
+    est_name: str,
+    cfg: dict[str, Any],
+    rng: np.random.Generator,
+) -> tuple[Any, Camera]:
     """Gravity (the prior for geometric depth, else a RANSAC floor/table plane, or none) and the camera
     placed in the gravity-aligned world frame."""
     from refspatial_gen.sources.image.gravity import GravityEstimate, estimate_gravity, world_from_cam
@@ -218,8 +259,9 @@ def _world_frame(depth: np.ndarray, intr: Intrinsics, prior: Any, cam_h: float, 
         vs, us = np.mgrid[0:H:st, 0:W:st]
         z = depth[::st, ::st]  # (us + 0.5, vs + 0.5): pixel centres in Camera's convention
         ok = z > 0  # object tops (tables, beds) are as good a gravity cue as the floor
-        pts = np.stack([(us[ok] + 0.5 - intr.cx) * z[ok] / intr.fx, (vs[ok] + 0.5 - intr.cy) * z[ok] / intr.fy,
-                        z[ok]], axis=1)
+        pts = np.stack(
+            [(us[ok] + 0.5 - intr.cx) * z[ok] / intr.fx, (vs[ok] + 0.5 - intr.cy) * z[ok] / intr.fy, z[ok]], axis=1
+        )
         g = estimate_gravity(pts, rng, prior_up, cfg["max_tilt_deg"])
         if g is None:
             grav = GravityEstimate(prior_up, False, "unknown", None, detail={"why": "no horizontal plane found"})
@@ -227,8 +269,9 @@ def _world_frame(depth: np.ndarray, intr: Intrinsics, prior: Any, cam_h: float, 
             grav = g
             grav.detail["pixels"] = (us[ok], vs[ok])
     elif mode == "prior":
-        grav = GravityEstimate(prior_up, True, "prior", cam_h,
-                               detail={"pitch_deg": round(float(np.rad2deg(pitch)), 4), "roll_deg": 0.0})
+        grav = GravityEstimate(
+            prior_up, True, "prior", cam_h, detail={"pitch_deg": round(float(np.rad2deg(pitch)), 4), "roll_deg": 0.0}
+        )
     else:
         grav = GravityEstimate(prior_up, False, "unknown", None, detail={"why": "gravity: none"})
     T = world_from_cam(grav.up_cam, grav.camera_height)
@@ -236,8 +279,9 @@ def _world_frame(depth: np.ndarray, intr: Intrinsics, prior: Any, cam_h: float, 
     return grav, cam
 
 
-def _checked_objects(rec: ImageRecord, ann: _Annotated, cfg: dict[str, Any], est_name: str,
-                     truth: dict[str, int]) -> list[F.Candidate]:
+def _checked_objects(
+    rec: ImageRecord, ann: _Annotated, cfg: dict[str, Any], est_name: str, truth: dict[str, int]
+) -> list[F.Candidate]:
     """The truth checks on the lifted boxes (sizes, boxes passing through each other, instance spread and
     count, complete categories); DropUnit when too many or too few objects are left."""
     from refspatial_gen.sources.image.truthcheck import check_sizes
@@ -256,8 +300,9 @@ def _checked_objects(rec: ImageRecord, ann: _Annotated, cfg: dict[str, Any], est
     if len(final) > cfg["max_objects"]:
         raise DropUnit("too_many_objects", f"{rec.image_id}: {len(final)} objects > max_objects")
     if len(final) < cfg["min_objects"]:
-        raise DropUnit("too_few_objects", f"{rec.image_id}: {len(final)} objects after lifting "
-                                          f"(dropped: {F.drop_counts(cands)})")
+        raise DropUnit(
+            "too_few_objects", f"{rec.image_id}: {len(final)} objects after lifting (dropped: {F.drop_counts(cands)})"
+        )
     return final
 
 
@@ -267,29 +312,66 @@ def _objects(final: list[F.Candidate], coll: Collection, res: Any) -> list[Objec
     for k, c in enumerate(final):
         ys, xs = np.nonzero(c.mask)
         bbox2d = (float(xs.min()), float(ys.min()), float(xs.max() + 1), float(ys.max() + 1))
-        prov = {"source": "image", "format": coll.format, "annotation_id": c.ann_id,
-                "depth": res.origin, **c.provenance}
-        objects.append(ObjectInstance(id=k + 1, category=c.category, box=c.box, mask=RLE.encode(c.mask),
-                                      bbox2d=bbox2d, visible_fraction=1.0, provenance=prov))
+        prov = {
+            "source": "image",
+            "format": coll.format,
+            "annotation_id": c.ann_id,
+            "depth": res.origin,
+            **c.provenance,
+        }
+        objects.append(
+            ObjectInstance(
+                id=k + 1,
+                category=c.category,
+                box=c.box,
+                mask=RLE.encode(c.mask),
+                bbox2d=bbox2d,
+                visible_fraction=1.0,
+                provenance=prov,
+            )
+        )
     return objects
 
 
-def _frame_meta(rec: ImageRecord, coll: Collection, intr: Intrinsics, res: Any, grav: Any, ann: _Annotated,
-                metric_scale: dict[str, Any], truth: dict[str, int]) -> dict[str, Any]:
+def _frame_meta(
+    rec: ImageRecord,
+    coll: Collection,
+    intr: Intrinsics,
+    res: Any,
+    grav: Any,
+    ann: _Annotated,
+    metric_scale: dict[str, Any],
+    truth: dict[str, int],
+) -> dict[str, Any]:
     """What the frame records about how it was made: intrinsics, depth, gravity, drops and truth counts."""
     cands = ann.cands
-    grav_meta = {"origin": grav.origin, "known": grav.known,
-                 "camera_height": None if grav.camera_height is None else round(float(grav.camera_height), 4),
-                 **{k: v for k, v in grav.detail.items() if k != "pixels"}}
+    grav_meta = {
+        "origin": grav.origin,
+        "known": grav.known,
+        "camera_height": None if grav.camera_height is None else round(float(grav.camera_height), 4),
+        **{k: v for k, v in grav.detail.items() if k != "pixels"},
+    }
     return {
-        "image_id": rec.image_id, "image_file": rec.file.name, "annotation_format": coll.format,
-        "intrinsics": intr.meta(), "depth": {"origin": res.origin, "is_metric": res.is_metric,
-                                            **{k: v for k, v in res.meta.items() if k != "objects"}},
-        "gravity": grav_meta, "dropped_objects": F.drop_counts(cands),
-        "dropped_object_list": [{"annotation_id": c.ann_id, "category": c.category, "reason": c.reason}
-                                for c in cands if c.reason is not None],
-        "crowd_categories": sorted(ann.crowd), "ignored_categories": dict(sorted(ann.ignored.items())),
-        "metric_scale": metric_scale, "truth": dict(sorted(truth.items())),
+        "image_id": rec.image_id,
+        "image_file": rec.file.name,
+        "annotation_format": coll.format,
+        "intrinsics": intr.meta(),
+        "depth": {
+            "origin": res.origin,
+            "is_metric": res.is_metric,
+            **{k: v for k, v in res.meta.items() if k != "objects"},
+        },
+        "gravity": grav_meta,
+        "dropped_objects": F.drop_counts(cands),
+        "dropped_object_list": [
+            {"annotation_id": c.ann_id, "category": c.category, "reason": c.reason}
+            for c in cands
+            if c.reason is not None
+        ],
+        "crowd_categories": sorted(ann.crowd),
+        "ignored_categories": dict(sorted(ann.ignored.items())),
+        "metric_scale": metric_scale,
+        "truth": dict(sorted(truth.items())),
     }
 
 
@@ -305,4 +387,3 @@ def _jsonable(x: Any) -> Any:
     if isinstance(x, np.bool_):
         return bool(x)
     return x
-

@@ -13,15 +13,26 @@ from refspatial_gen.core.geometry import Box3D
 from refspatial_gen.sources.image import filters as F
 
 
-def lift_candidates(live: list[F.Candidate], depth: np.ndarray, cam: Camera, support_z: list[float],
-                    walls: list[tuple[np.ndarray, float]], cfg: dict[str, Any], est_name: str) -> None:
+def lift_candidates(
+    live: list[F.Candidate],
+    depth: np.ndarray,
+    cam: Camera,
+    support_z: list[float],
+    walls: list[tuple[np.ndarray, float]],
+    cfg: dict[str, Any],
+    est_name: str,
+) -> None:
     """Give each live candidate its box (or drop it with a reason), smallest annotations first, in place."""
     from refspatial_gen.sources.image.lift import LiftParams
 
     H, W = depth.shape
-    params = LiftParams(max_points=cfg["max_points_per_object"], min_points=cfg["min_points"],
-                        min_valid_fraction=cfg["min_valid_depth_fraction"], complete_depth=cfg["complete_depth"],
-                        snap_distance=0.25 if cfg["snap_to_support"] else 0.0)
+    params = LiftParams(
+        max_points=cfg["max_points_per_object"],
+        min_points=cfg["min_points"],
+        min_valid_fraction=cfg["min_valid_depth_fraction"],
+        complete_depth=cfg["complete_depth"],
+        snap_distance=0.25 if cfg["snap_to_support"] else 0.0,
+    )
     claimed = np.zeros((H, W), bool)  # box annotations: pixels already taken by a smaller box's object
     layered = _box_masks(live, depth, cam, support_z, walls, params) if est_name != "geometric" else {}
     pending: list[F.Candidate] = []  # box annotations lifted, awaiting amodal completion
@@ -32,9 +43,19 @@ def lift_candidates(live: list[F.Candidate], depth: np.ndarray, cam: Camera, sup
     _complete_box_annotations([c for c in pending if c.reason is None], depth, cam, support_z, params)
 
 
-def _lift_one(c: F.Candidate, bm: np.ndarray | None, claimed: np.ndarray, pending: list[F.Candidate],
-              depth: np.ndarray, cam: Camera, support_z: list[float], walls: list[tuple[np.ndarray, float]],
-              params: Any, cfg: dict[str, Any], est_name: str) -> None:
+def _lift_one(
+    c: F.Candidate,
+    bm: np.ndarray | None,
+    claimed: np.ndarray,
+    pending: list[F.Candidate],
+    depth: np.ndarray,
+    cam: Camera,
+    support_z: list[float],
+    walls: list[tuple[np.ndarray, float]],
+    params: Any,
+    cfg: dict[str, Any],
+    est_name: str,
+) -> None:
     """One candidate: its pixels with depth lifted to a box; a box annotation's mask refined by depth
     (its pixels added to `claimed`); box-layered ones fitted to their 2D box and queued in `pending`."""
     from refspatial_gen.sources.image.amodal import fit_to_box2d
@@ -57,8 +78,7 @@ def _lift_one(c: F.Candidate, bm: np.ndarray | None, claimed: np.ndarray, pendin
         cx_, cy_, hw, hh = (x0 + x1) / 2, (y0 + y1) / 2, (x1 - x0) / 4, (y1 - y0) / 4
         weights = np.where((np.abs(xs - cx_) <= hw) & (np.abs(ys - cy_) <= hh), 1.0, 0.2)
     if bm is not None:
-        out = lift_object(xs, ys, zz, cam, replace(params, complete_depth=False), support_z, walls,
-                          preselected=True)
+        out = lift_object(xs, ys, zz, cam, replace(params, complete_depth=False), support_z, walls, preselected=True)
     else:
         out = lift_object(xs, ys, zz, cam, params, support_z, walls, weights)
     if isinstance(out, str):
@@ -98,9 +118,14 @@ def _with_bottom(box: Box3D, bottom: float) -> Box3D:
     return Box3D(c, s, box.rotation)
 
 
-
-def _box_masks(live: list[F.Candidate], depth: np.ndarray, cam: Camera, support_z: list[float],
-               walls: list[tuple[np.ndarray, float]], params) -> dict[int, np.ndarray]:
+def _box_masks(
+    live: list[F.Candidate],
+    depth: np.ndarray,
+    cam: Camera,
+    support_z: list[float],
+    walls: list[tuple[np.ndarray, float]],
+    params,
+) -> dict[int, np.ndarray]:
     """Box annotations: visible masks by depth layering of the overlapping boxes (boxseg.py), by id(c)."""
     from refspatial_gen.sources.image.boxseg import assign_boxes
 
@@ -118,9 +143,9 @@ def _box_masks(live: list[F.Candidate], depth: np.ndarray, cam: Camera, support_
     return {id(c): m for c, m in zip(boxes, bm.masks)}
 
 
-
-def _complete_box_annotations(cands: list[F.Candidate], depth: np.ndarray, cam: Camera, support_z: list[float],
-                              params) -> None:
+def _complete_box_annotations(
+    cands: list[F.Candidate], depth: np.ndarray, cam: Camera, support_z: list[float], params
+) -> None:
     """Amodal completion of lifted box annotations (amodal.py): down to what they stand on (a support
     plane or another object's top) when the added part would be hidden, then along the view direction."""
     from refspatial_gen.sources.image.amodal import complete_to_support, supports_below
@@ -141,4 +166,3 @@ def _complete_box_annotations(cands: list[F.Candidate], depth: np.ndarray, cam: 
                 notes["depth_completed"] = round(grow, 4)
         c.box = box
         c.provenance.update(notes)
-

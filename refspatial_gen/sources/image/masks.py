@@ -13,16 +13,17 @@ from refspatial_gen.sources.image.records import Annotation, ImageRecord
 BOUNDS_TOLERANCE_PX = 1.0  # annotations may touch the border, rounding included; more is an error
 
 
-
-def _check_bounds(ann: Annotation, extent: tuple[float, float, float, float], width: int, height: int,
-                  image_id: str) -> None:
+def _check_bounds(
+    ann: Annotation, extent: tuple[float, float, float, float], width: int, height: int, image_id: str
+) -> None:
     x0, y0, x1, y1 = extent
     t = BOUNDS_TOLERANCE_PX
     if x0 < -t or y0 < -t or x1 > width + t or y1 > height + t or not np.all(np.isfinite(extent)):
-        raise DropUnit("annotation_out_of_bounds",
-                       f"image {image_id}: annotation {ann.ann_id} ({ann.category}) spans "
-                       f"[{x0:.1f}, {y0:.1f}, {x1:.1f}, {y1:.1f}] outside the {width}x{height} image")
-
+        raise DropUnit(
+            "annotation_out_of_bounds",
+            f"image {image_id}: annotation {ann.ann_id} ({ann.category}) spans "
+            f"[{x0:.1f}, {y0:.1f}, {x1:.1f}, {y1:.1f}] outside the {width}x{height} image",
+        )
 
 
 def resolved_bbox(ann: Annotation, rec: ImageRecord, width: int, height: int) -> tuple[float, float, float, float]:
@@ -32,7 +33,6 @@ def resolved_bbox(ann: Annotation, rec: ImageRecord, width: int, height: int) ->
         bb = (bb[0] * width, bb[1] * height, bb[2] * width, bb[3] * height)
     _check_bounds(ann, bb, width, height, rec.image_id)
     return bb
-
 
 
 def read_panoptic_ids(path: Path, width: int, height: int, image_id: str) -> np.ndarray:
@@ -46,15 +46,17 @@ def read_panoptic_ids(path: Path, width: int, height: int, image_id: str) -> np.
     except (OSError, ValueError) as e:
         raise DropUnit("annotation_unreadable", f"image {image_id}: panoptic PNG {path} could not be decoded") from e
     if img.shape[:2] != (height, width):
-        raise DropUnit("annotation_size_mismatch",
-                       f"image {image_id}: panoptic PNG is {img.shape[1]}x{img.shape[0]}, image {width}x{height}")
+        raise DropUnit(
+            "annotation_size_mismatch",
+            f"image {image_id}: panoptic PNG is {img.shape[1]}x{img.shape[0]}, image {width}x{height}",
+        )
     rgb = img.astype(np.int64)
     return rgb[..., 0] + 256 * rgb[..., 1] + 256 * 256 * rgb[..., 2]
 
 
-
-def annotation_mask(ann: Annotation, rec: ImageRecord, width: int, height: int,
-                    panoptic_ids: np.ndarray | None = None) -> tuple[np.ndarray, bool]:
+def annotation_mask(
+    ann: Annotation, rec: ImageRecord, width: int, height: int, panoptic_ids: np.ndarray | None = None
+) -> tuple[np.ndarray, bool]:
     """The annotation's visible mask (bool HxW) and whether it is a true segmentation (False: box only).
 
     Raises DropUnit for an annotation outside the image or of the wrong size (the whole image is dropped:
@@ -84,4 +86,3 @@ def annotation_mask(ann: Annotation, rec: ImageRecord, width: int, height: int,
             m = cv2.resize(m, (width, height), interpolation=cv2.INTER_NEAREST)
         return m > 127, True
     return box_mask(bb, height, width), False
-

@@ -12,13 +12,20 @@ import numpy as np
 from refspatial_gen.core.errors import InputError
 from refspatial_gen.sources.image import checks as C
 from refspatial_gen.sources.image.records import (
-    IMAGE_EXTS, Annotation, Collection, ImageRecord, csv_head, find_images_dir, mark_invalid, peek_json,
+    IMAGE_EXTS,
+    Annotation,
+    Collection,
+    ImageRecord,
+    csv_head,
+    find_images_dir,
+    mark_invalid,
+    peek_json,
 )
 
 
 def _read_csv(path: Path, required: tuple[str, ...] = ()) -> list[dict[str, str]]:
     try:
-        with open(path, "r", encoding="utf-8", newline="") as f:
+        with open(path, encoding="utf-8", newline="") as f:
             reader = csv.DictReader(f)
             missing = [c for c in required if c not in (reader.fieldnames or [])]
             if missing:
@@ -28,13 +35,10 @@ def _read_csv(path: Path, required: tuple[str, ...] = ()) -> list[dict[str, str]
         raise InputError(str(path), f"not a readable CSV file ({type(e).__name__})") from None
 
 
-
 BOX_COLUMNS = ("ImageID", "LabelName", "XMin", "XMax", "YMin", "YMax")
 
 
-
 MASK_COLUMNS = ("MaskPath", "ImageID", "LabelName", "BoxXMin", "BoxYMin", "BoxXMax", "BoxYMax")
-
 
 
 def _num(row: dict[str, str], col: str, what: str) -> float:
@@ -42,7 +46,6 @@ def _num(row: dict[str, str], col: str, what: str) -> float:
         return C.finite(float(row.get(col) or "nan"), f"{what} {col}")
     except ValueError:
         raise C.Bad("annotation_invalid", f"{what} {col} is not a number: {str(row.get(col))[:30]!r}") from None
-
 
 
 def read_openimages(root: Path, annotations: str | None = None, images_dir: str | None = None) -> Collection:
@@ -60,7 +63,7 @@ def read_openimages(root: Path, annotations: str | None = None, images_dir: str 
             box_rows.extend(_read_csv(p, BOX_COLUMNS))
         else:
             try:
-                with open(p, "r", encoding="utf-8", newline="") as f:
+                with open(p, encoding="utf-8", newline="") as f:
                     for row in csv.reader(f):
                         if len(row) >= 2 and row[0] != "LabelName":
                             names[row[0]] = row[1]
@@ -79,8 +82,11 @@ def read_openimages(root: Path, annotations: str | None = None, images_dir: str 
         return images[iid]
 
     rows = mask_rows if mask_rows else box_rows
-    order = (lambda r: (r["ImageID"], r["MaskPath"])) if mask_rows else \
-        (lambda r: (r["ImageID"], r["LabelName"], r["XMin"], r["YMin"]))
+    order = (
+        (lambda r: (r["ImageID"], r["MaskPath"]))
+        if mask_rows
+        else (lambda r: (r["ImageID"], r["LabelName"], r["XMin"], r["YMin"]))
+    )
     for k, r in enumerate(sorted(rows, key=lambda r: tuple(str(x) for x in order(r)))):
         iid = C.entry_id(r["ImageID"])
         if iid is None:
@@ -90,13 +96,30 @@ def read_openimages(root: Path, annotations: str | None = None, images_dir: str 
         try:
             if mask_rows:
                 bb = tuple(_num(r, c, f"image {iid}") for c in ("BoxXMin", "BoxYMin", "BoxXMax", "BoxYMax"))
-                ann = Annotation(f"m{k}", names.get(label, label), bb, "mask_png",
-                                 C.relative_file(r["MaskPath"], mask_dir, f"image {iid} MaskPath"), attributes={})
+                ann = Annotation(
+                    f"m{k}",
+                    names.get(label, label),
+                    bb,
+                    "mask_png",
+                    C.relative_file(r["MaskPath"], mask_dir, f"image {iid} MaskPath"),
+                    attributes={},
+                )
             else:
-                bb = (_num(r, "XMin", f"image {iid}"), _num(r, "YMin", f"image {iid}"),
-                      _num(r, "XMax", f"image {iid}"), _num(r, "YMax", f"image {iid}"))
-                ann = Annotation(f"b{k}", names.get(label, label), bb, "box", None,
-                                 iscrowd=r.get("IsGroupOf", "0") == "1", attributes={})
+                bb = (
+                    _num(r, "XMin", f"image {iid}"),
+                    _num(r, "YMin", f"image {iid}"),
+                    _num(r, "XMax", f"image {iid}"),
+                    _num(r, "YMax", f"image {iid}"),
+                )
+                ann = Annotation(
+                    f"b{k}",
+                    names.get(label, label),
+                    bb,
+                    "box",
+                    None,
+                    iscrowd=r.get("IsGroupOf", "0") == "1",
+                    attributes={},
+                )
         except C.Bad as bad:
             rec_for(iid).meta.setdefault("invalid", (bad.reason, bad.detail))
             continue
@@ -104,7 +127,6 @@ def read_openimages(root: Path, annotations: str | None = None, images_dir: str 
     for rec in images.values():
         rec.meta["normalised_boxes"] = True
     return Collection(root, "openimages", images)
-
 
 
 def _sunrgbd_record(d: Path) -> ImageRecord:
@@ -124,12 +146,17 @@ def _sunrgbd_record(d: Path) -> ImageRecord:
         objects = a.get("objects")
         if not isinstance(objects, list):
             raise C.Bad("annotation_invalid", f"{d.name}: objects must be a list")
-        rec = ImageRecord(d.name, C.relative_file(a.get("image", "image.jpg"), d, f"{d.name} image"),
-                          C.positive_int(a.get("width"), f"{d.name} width"), C.positive_int(a.get("height"), f"{d.name} height"),
-                          [], depth_file=C.relative_file(a.get("depth", "depth.png"), d, f"{d.name} depth"),
-                          # the annotation's K is in 0-based pixel centres: +0.5 to the pixel-edge convention
-                          intrinsics=(float(K[0, 0]), float(K[1, 1]), float(K[0, 2]) + 0.5, float(K[1, 2]) + 0.5),
-                          meta={"depth_scale": scale})
+        rec = ImageRecord(
+            d.name,
+            C.relative_file(a.get("image", "image.jpg"), d, f"{d.name} image"),
+            C.positive_int(a.get("width"), f"{d.name} width"),
+            C.positive_int(a.get("height"), f"{d.name} height"),
+            [],
+            depth_file=C.relative_file(a.get("depth", "depth.png"), d, f"{d.name} depth"),
+            # the annotation's K is in 0-based pixel centres: +0.5 to the pixel-edge convention
+            intrinsics=(float(K[0, 0]), float(K[1, 1]), float(K[0, 2]) + 0.5, float(K[1, 2]) + 0.5),
+            meta={"depth_scale": scale},
+        )
         for k, o in enumerate(objects):
             b = o.get("bbox2d_xyxy") if isinstance(o, dict) else None
             if not isinstance(b, list) or len(b) != 4:
@@ -145,7 +172,6 @@ def _sunrgbd_record(d: Path) -> ImageRecord:
     return rec
 
 
-
 def read_sunrgbd(root: Path, annotations: str | None = None, images_dir: str | None = None) -> Collection:
     """SUN RGB-D folders as plain images: 2D boxes (1-based MATLAB -> 0-based), K and the depth path.
     The 3D boxes and Rtilt are deliberately not read (they are the ground truth of the evaluation)."""
@@ -153,4 +179,3 @@ def read_sunrgbd(root: Path, annotations: str | None = None, images_dir: str | N
     for d in sorted(p for p in root.iterdir() if p.is_dir() and (p / "annotation.json").is_file()):
         images[d.name] = _sunrgbd_record(d)
     return Collection(root, "sunrgbd", images)
-

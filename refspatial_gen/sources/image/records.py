@@ -13,7 +13,6 @@ from refspatial_gen.sources.image import checks as C
 IMAGE_EXTS = (".jpg", ".jpeg", ".png", ".bmp", ".webp")
 
 
-
 @dataclass
 class Annotation:
     """One annotated object (or stuff region). `bbox` is (x0, y0, x1, y1) in continuous pixel coordinates."""
@@ -26,7 +25,6 @@ class Annotation:
     iscrowd: bool = False
     isthing: bool = True
     attributes: dict[str, str] = field(default_factory=dict)
-
 
 
 @dataclass
@@ -42,7 +40,6 @@ class ImageRecord:
     meta: dict[str, Any] = field(default_factory=dict)
 
 
-
 @dataclass
 class Collection:
     root: Path
@@ -53,28 +50,24 @@ class Collection:
         return sorted(self.images)
 
 
-
 def json_files(root: Path) -> list[Path]:
     return sorted(p for p in root.iterdir() if p.suffix == ".json" and p.is_file())
 
 
-
 def peek_json(path: Path) -> dict | list | None:
     try:
-        with open(path, "r", encoding="utf-8") as f:
+        with open(path, encoding="utf-8") as f:
             return json.load(f)
     except (OSError, ValueError, RecursionError):  # ValueError covers JSONDecodeError and UnicodeDecodeError
         return None
 
 
-
 def csv_head(p: Path) -> str:
     try:
-        with open(p, "r", encoding="utf-8") as f:
+        with open(p, encoding="utf-8") as f:
             return f.readline()
     except (OSError, UnicodeDecodeError):
         return ""
-
 
 
 def find_images_dir(root: Path, hint: str | None) -> Path:
@@ -86,11 +79,9 @@ def find_images_dir(root: Path, hint: str | None) -> Path:
     return root
 
 
-
 def mark_invalid(images: dict[str, ImageRecord], iid: str, img_dir: Path, bad: C.Bad) -> None:
     """Mark an image's record invalid (created when the entry itself was unusable); the first problem wins."""
     rec = images.get(iid)
     if rec is None:
         rec = images[iid] = ImageRecord(iid, img_dir / "(invalid)", None, None, [])
     rec.meta.setdefault("invalid", (bad.reason, bad.detail))
-

@@ -22,8 +22,19 @@ from refspatial_gen.sources.image.surfaces import SUPPORT_CATEGORIES
 
 _with_defaults = with_defaults  # the name tests and benches import
 
-__all__ = ["CONFIG_FIELDS", "KEY_PREFIX", "SUPPORT_CATEGORIES", "ImageSource", "build_frame", "decode_rgb",
-           "estimator_from_config", "input_root", "parse_key", "unit_key", "with_defaults"]
+__all__ = [
+    "CONFIG_FIELDS",
+    "KEY_PREFIX",
+    "SUPPORT_CATEGORIES",
+    "ImageSource",
+    "build_frame",
+    "decode_rgb",
+    "estimator_from_config",
+    "input_root",
+    "parse_key",
+    "unit_key",
+    "with_defaults",
+]
 
 
 class ImageSource:
@@ -38,6 +49,7 @@ class ImageSource:
         cfg = with_defaults(config)
         if cfg["perception"]:
             from refspatial_gen.perception.photos import photo_ids
+
             keys = [unit_key(iid) for iid in photo_ids(input_path, cfg)]
             return keys if scenes is None else keys[:scenes]
         coll = load_collection(input_path, cfg["format"], cfg["annotations"], cfg["images_dir"])
@@ -50,6 +62,7 @@ class ImageSource:
         cfg = with_defaults(config)
         if cfg["perception"]:
             from refspatial_gen.perception.photos import load_photo
+
             return [load_photo(root, iid, rng, cfg, build_frame)]
         coll = load_collection(root, cfg["format"], cfg["annotations"], cfg["images_dir"])
         rec = coll.images.get(iid)
@@ -57,4 +70,3 @@ class ImageSource:
             raise DropUnit("unknown_image", f"{iid} not in {root}")
         raise_if_invalid(rec.meta)  # a malformed annotation entry drops its image (sources/image/checks.py)
         return [build_frame(coll, rec, rng, cfg)]
-

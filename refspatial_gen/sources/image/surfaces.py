@@ -10,9 +10,21 @@ from refspatial_gen.core.model import SupportSurface
 from refspatial_gen.sources.image.annotations import GROUND_STUFF_PREFIXES, SUPPORT_STUFF_PREFIXES
 
 # thing categories whose top is a support surface when a horizontal plane lies on them
-SUPPORT_CATEGORIES = ("dining table", "table", "desk", "bed", "counter", "bench", "night_stand", "dresser",
-                      "coffee_table", "sofa", "couch", "shelf", "cabinet")
-
+SUPPORT_CATEGORIES = (
+    "dining table",
+    "table",
+    "desk",
+    "bed",
+    "counter",
+    "bench",
+    "night_stand",
+    "dresser",
+    "coffee_table",
+    "sofa",
+    "couch",
+    "shelf",
+    "cabinet",
+)
 
 
 def stuff_kind(name: str) -> str | None:
@@ -22,7 +34,6 @@ def stuff_kind(name: str) -> str | None:
     if n.startswith(SUPPORT_STUFF_PREFIXES):
         return "support"
     return None
-
 
 
 def _surface_box(world_pts: np.ndarray, top_z: float) -> Box3D | None:
@@ -41,9 +52,9 @@ def _surface_box(world_pts: np.ndarray, top_z: float) -> Box3D | None:
     return Box3D(np.array([cx, cy, top_z - 0.01]), np.array([w, h, 0.02]), rot_z(np.deg2rad(ang)))
 
 
-
-def support_surfaces(grav, cam: Camera, depth: np.ndarray, ground: np.ndarray, support_stuff, final, objects, res,
-              est_name: str) -> list[SupportSurface]:
+def support_surfaces(
+    grav, cam: Camera, depth: np.ndarray, ground: np.ndarray, support_stuff, final, objects, res, est_name: str
+) -> list[SupportSurface]:
     """Named horizontal support surfaces only: a plane is named by the object or stuff it lies on (a
     single instance of a support category, or panoptic table/floor stuff) or, when it is the lowest plane
     at least 0.9 m under the camera, 'the floor'. Unnamed planes only serve gravity."""
@@ -54,7 +65,9 @@ def support_surfaces(grav, cam: Camera, depth: np.ndarray, ground: np.ndarray, s
             ys, xs = np.nonzero(ground & (depth > 0))
             if len(ys) > 50:
                 step = max(1, len(ys) // 4000)
-                pts = cam.cam_to_world(cam.backproject(xs[::step] + 0.5, ys[::step] + 0.5, depth[ys[::step], xs[::step]]))
+                pts = cam.cam_to_world(
+                    cam.backproject(xs[::step] + 0.5, ys[::step] + 0.5, depth[ys[::step], xs[::step]])
+                )
                 b = _surface_box(pts, 0.0)
                 if b is not None:
                     out.append(SupportSurface("ground", "floor", b, None, "the ground"))
@@ -89,4 +102,3 @@ def support_surfaces(grav, cam: Camera, depth: np.ndarray, ground: np.ndarray, s
         if b is not None:
             out.append(SupportSurface(f"plane{i}", kind, b, oid, name))
     return out
-

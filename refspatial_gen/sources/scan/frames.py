@@ -18,18 +18,41 @@ from refspatial_gen.sources.scan.view import ScanBox, ScanView
 from refspatial_gen.sources.scan.visibility import object_visibility
 
 DEFAULTS: dict[str, Any] = {
-    "occlusion_tolerance": 0.025, "mask_pad": 0.01, "floor_margin": 0.03, "min_mask_pixels": 16,
-    "min_visible_fraction": 0.0, "min_visible_objects": 1, "blur_threshold": 0.0, "max_width": 0,
-    "splat_scale": 1.0, "instance_labels": True, "withhold_unexplained_floor": True, "unexplained_min_points": 20,
+    "occlusion_tolerance": 0.025,
+    "mask_pad": 0.01,
+    "floor_margin": 0.03,
+    "min_mask_pixels": 16,
+    "min_visible_fraction": 0.0,
+    "min_visible_objects": 1,
+    "blur_threshold": 0.0,
+    "max_width": 0,
+    "splat_scale": 1.0,
+    "instance_labels": True,
+    "withhold_unexplained_floor": True,
+    "unexplained_min_points": 20,
 }
 
 SUPPORT_KINDS = {
-    "table": "table", "desk": "table", "coffee table": "table", "dining table": "table", "side table": "table",
-    "counter": "counter", "bookshelf": "shelf", "shelf": "shelf", "night stand": "object", "dresser": "object",
-    "cabinet": "object", "bed": "object", "ottoman": "object",
+    "table": "table",
+    "desk": "table",
+    "coffee table": "table",
+    "dining table": "table",
+    "side table": "table",
+    "counter": "counter",
+    "bookshelf": "shelf",
+    "shelf": "shelf",
+    "night stand": "object",
+    "dresser": "object",
+    "cabinet": "object",
+    "bed": "object",
+    "ottoman": "object",
 }
-CATEGORY_NAMES = {"garbagebin": "garbage bin", "showercurtrain": "shower curtain", "night_stand": "night stand",
-                  "refridgerator": "refrigerator"}
+CATEGORY_NAMES = {
+    "garbagebin": "garbage bin",
+    "showercurtrain": "shower curtain",
+    "night_stand": "night stand",
+    "refridgerator": "refrigerator",
+}
 
 
 def category_phrase(raw: str) -> str:
@@ -56,7 +79,11 @@ def check_pose(cam: Camera) -> None:
     if not np.all(np.isfinite(T)):
         raise DropUnit("pose_invalid", "camera pose has NaN or infinite entries")
     R = T[:3, :3]
-    if abs(np.linalg.det(R) - 1) > 1e-3 or not np.allclose(R.T @ R, np.eye(3), atol=1e-3) or not np.allclose(T[3], [0, 0, 0, 1]):
+    if (
+        abs(np.linalg.det(R) - 1) > 1e-3
+        or not np.allclose(R.T @ R, np.eye(3), atol=1e-3)
+        or not np.allclose(T[3], [0, 0, 0, 1])
+    ):
         raise DropUnit("pose_invalid", "camera pose is not a rigid transform")
     for name in ("fx", "fy", "cx", "cy"):
         if not np.isfinite(getattr(cam, name)) or (name in ("fx", "fy") and getattr(cam, name) <= 0):
@@ -74,7 +101,9 @@ def check_depth(depth: np.ndarray, shape: tuple[int, int]) -> None:
         raise DropUnit("depth_empty", "depth map has no valid pixel")
 
 
-def resize_view(rgb: np.ndarray, depth: np.ndarray | None, cam: Camera, max_width: int) -> tuple[np.ndarray, np.ndarray | None, Camera]:
+def resize_view(
+    rgb: np.ndarray, depth: np.ndarray | None, cam: Camera, max_width: int
+) -> tuple[np.ndarray, np.ndarray | None, Camera]:
     """Downscale wide images (and K, corner-origin pixel convention) so masks and splats stay cheap."""
     import cv2
 
@@ -118,7 +147,9 @@ def object_surfaces(objects: list[ObjectInstance]) -> list[SupportSurface]:
             continue
         b = o.box
         top = b.top_z
-        slab = Box3D(np.array([b.center[0], b.center[1], top - 0.01]), np.array([b.size[0], b.size[1], 0.02]), b.rotation)
+        slab = Box3D(
+            np.array([b.center[0], b.center[1], top - 0.01]), np.array([b.size[0], b.size[1], 0.02]), b.rotation
+        )
         out.append(SupportSurface(f"obj{o.id}", kind, slab, o.id, f"the {o.category}"))
     return out
 
@@ -131,15 +162,18 @@ def instance_map(view: ScanView, owner: np.ndarray | None) -> np.ndarray | None:
     return np.where(owner >= 0, lab[np.clip(owner, 0, len(lab) - 1)], -1)
 
 
-def _withhold_unexplained(view: ScanView, cam: Camera, depth: np.ndarray, floor_z: float,
-                          config: dict[str, Any]) -> int:
+def _withhold_unexplained(
+    view: ScanView, cam: Camera, depth: np.ndarray, floor_z: float, config: dict[str, Any]
+) -> int:
     """Unknown depth on the floor under unannotated things standing on it (occupancy.py), in place."""
     from refspatial_gen.sources.scan.occupancy import floor_footprints, unexplained_points, withhold_floor
 
     labels = view.point_labels if bool(cfg(config, "instance_labels")) else None
     structural = set(view.meta.get("structural_instances", []))
     un = unexplained_points(view.points, view.boxes, floor_z, labels, view.box_instance, structural)
-    fps = floor_footprints(view.points, un, floor_z, point_spacing(view.points), int(cfg(config, "unexplained_min_points")))
+    fps = floor_footprints(
+        view.points, un, floor_z, point_spacing(view.points), int(cfg(config, "unexplained_min_points"))
+    )
     return withhold_floor(depth, cam, fps, floor_z)
 
 
@@ -163,8 +197,17 @@ def view_to_frame(view: ScanView, config: dict[str, Any]) -> Frame:
     if truth:
         meta["truth"] = truth
     frame_id = f"scan/{view.reader}/{view.scene_id}/{view.view_id}"
-    frame = Frame(frame_id, np.ascontiguousarray(rgb), depth, cam, objects, surfaces, source="scan",
-                  scene_id=f"{view.reader}/{view.scene_id}", meta=meta)
+    frame = Frame(
+        frame_id,
+        np.ascontiguousarray(rgb),
+        depth,
+        cam,
+        objects,
+        surfaces,
+        source="scan",
+        scene_id=f"{view.reader}/{view.scene_id}",
+        meta=meta,
+    )
     try:
         frame.validate()
     except ValueError as e:
@@ -172,8 +215,9 @@ def view_to_frame(view: ScanView, config: dict[str, Any]) -> Frame:
     return frame
 
 
-def _checked_view(view: ScanView, config: dict[str, Any]
-                  ) -> tuple[np.ndarray, np.ndarray, Camera, np.ndarray | None, dict[str, Any]]:
+def _checked_view(
+    view: ScanView, config: dict[str, Any]
+) -> tuple[np.ndarray, np.ndarray, Camera, np.ndarray | None, dict[str, Any]]:
     """The view's checked (and resized) image, depth (splatted from the points when the view has none) and
     camera, the point each pixel shows (splatted depth only) and the frame's first meta entries."""
     cam = view.camera
@@ -193,9 +237,18 @@ def _checked_view(view: ScanView, config: dict[str, Any]
         for sb in view.boxes:
             b = sb.provenance.get("bbox2d_annotated")
             if b is not None:
-                sb.provenance["bbox2d_annotated"] = [round(b[0] * sx, 3), round(b[1] * sy, 3), round(b[2] * sx, 3), round(b[3] * sy, 3)]
-    meta: dict[str, Any] = {"reader": view.reader, "view_id": view.view_id, "gravity_source": view.gravity_source,
-                            **view.meta}
+                sb.provenance["bbox2d_annotated"] = [
+                    round(b[0] * sx, 3),
+                    round(b[1] * sy, 3),
+                    round(b[2] * sx, 3),
+                    round(b[3] * sy, 3),
+                ]
+    meta: dict[str, Any] = {
+        "reader": view.reader,
+        "view_id": view.view_id,
+        "gravity_source": view.gravity_source,
+        **view.meta,
+    }
     owner = None  # per pixel, the index of the point it shows (point clouds only)
     if depth is None:
         if view.points is None or len(view.points) == 0:
@@ -215,8 +268,9 @@ def _checked_view(view: ScanView, config: dict[str, Any]
     return rgb, depth, cam, owner, meta
 
 
-def _visible_boxes(view: ScanView, cam: Camera, depth: np.ndarray, config: dict[str, Any],
-                   point_spacing_m: float) -> list[tuple[ScanBox, dict[str, Any]]]:
+def _visible_boxes(
+    view: ScanView, cam: Camera, depth: np.ndarray, config: dict[str, Any], point_spacing_m: float
+) -> list[tuple[ScanBox, dict[str, Any]]]:
     """Each box whose projection meets the image, with its visibility (visibility.py), by box id."""
     visible: list[tuple[ScanBox, dict[str, Any]]] = []
     for sb in sorted(view.boxes, key=lambda b: b.id):
@@ -225,16 +279,29 @@ def _visible_boxes(view: ScanView, cam: Camera, depth: np.ndarray, config: dict[
             if view.boxes_per_frame:
                 raise DropUnit("box_behind_camera", f"annotated box {sb.id} ({sb.category}) lies behind the camera")
             continue
-        vis = object_visibility(cam, depth, sb.box, float(cfg(config, "occlusion_tolerance")),
-                                float(cfg(config, "mask_pad")), float(cfg(config, "floor_margin")),
-                                cam.gravity_known, view.points, point_spacing_m * float(cfg(config, "splat_scale")))
+        vis = object_visibility(
+            cam,
+            depth,
+            sb.box,
+            float(cfg(config, "occlusion_tolerance")),
+            float(cfg(config, "mask_pad")),
+            float(cfg(config, "floor_margin")),
+            cam.gravity_known,
+            view.points,
+            point_spacing_m * float(cfg(config, "splat_scale")),
+        )
         if vis is not None:
             visible.append((sb, vis))
     return visible
 
 
-def _objects(view: ScanView, visible: list[tuple[ScanBox, dict[str, Any]]], cam: Camera, owner: np.ndarray | None,
-             config: dict[str, Any]) -> tuple[list[ObjectInstance], list[dict[str, Any]], dict[str, int]]:
+def _objects(
+    view: ScanView,
+    visible: list[tuple[ScanBox, dict[str, Any]]],
+    cam: Camera,
+    owner: np.ndarray | None,
+    config: dict[str, Any],
+) -> tuple[list[ObjectInstance], list[dict[str, Any]], dict[str, int]]:
     """The objects with exclusive masks, the boxes seen too little (excluded) and the truth counts."""
     # a pixel whose depth point lies in several boxes (a mug resting in the padded top of a table box)
     # belongs to the smallest of them: masks are exclusive, like a segmentation
@@ -255,22 +322,48 @@ def _objects(view: ScanView, visible: list[tuple[ScanBox, dict[str, Any]]], cam:
             m &= ~other
         area = int(m.sum())
         cat = category_phrase(sb.category)
-        if area < int(cfg(config, "min_mask_pixels")) or vis["visible_fraction"] < float(cfg(config, "min_visible_fraction")):
+        if area < int(cfg(config, "min_mask_pixels")) or vis["visible_fraction"] < float(
+            cfg(config, "min_visible_fraction")
+        ):
             if area > 0:
-                excluded.append({"id": sb.id, "category": cat, "visible_pixels": area,
-                                 "visible_fraction": round(float(vis["visible_fraction"]), 4)})
+                excluded.append(
+                    {
+                        "id": sb.id,
+                        "category": cat,
+                        "visible_pixels": area,
+                        "visible_fraction": round(float(vis["visible_fraction"]), 4),
+                    }
+                )
             if trimmed and area < int(cfg(config, "min_mask_pixels")):
                 truth["mask_of_other_instances"] = truth.get("mask_of_other_instances", 0) + 1
             continue
         ys, xs = np.nonzero(m)
-        prov = {"source": "scan", "reader": view.reader, "annotation_id": sb.id, "raw_category": sb.category,
-                "visible_pixels": area, "pixels_given_to_smaller_boxes": int(vis["visible_pixels"]) - area, "occluded_pixels": vis["occluded_pixels"],
-                "see_through_pixels": vis["see_through_pixels"], "fraction_method": vis["fraction_method"],
-                **({"pixels_of_other_instances": trimmed, "instance": int(inst)} if inst is not None else {}),
-                **sb.provenance}
-        objects.append(ObjectInstance(
-            id=int(sb.id), category=cat, box=sb.box, mask=RLE.encode(m),
-            bbox2d=(float(xs.min()), float(ys.min()), float(xs.max() + 1), float(ys.max() + 1)),
-            visible_fraction=float(min(1.0, vis["visible_fraction"])), name=sb.name, attributes=dict(sb.attributes),
-            front=sb.front, front_phrase=sb.front_phrase, provenance=prov))
+        prov = {
+            "source": "scan",
+            "reader": view.reader,
+            "annotation_id": sb.id,
+            "raw_category": sb.category,
+            "visible_pixels": area,
+            "pixels_given_to_smaller_boxes": int(vis["visible_pixels"]) - area,
+            "occluded_pixels": vis["occluded_pixels"],
+            "see_through_pixels": vis["see_through_pixels"],
+            "fraction_method": vis["fraction_method"],
+            **({"pixels_of_other_instances": trimmed, "instance": int(inst)} if inst is not None else {}),
+            **sb.provenance,
+        }
+        objects.append(
+            ObjectInstance(
+                id=int(sb.id),
+                category=cat,
+                box=sb.box,
+                mask=RLE.encode(m),
+                bbox2d=(float(xs.min()), float(ys.min()), float(xs.max() + 1), float(ys.max() + 1)),
+                visible_fraction=float(min(1.0, vis["visible_fraction"])),
+                name=sb.name,
+                attributes=dict(sb.attributes),
+                front=sb.front,
+                front_phrase=sb.front_phrase,
+                provenance=prov,
+            )
+        )
     return objects, excluded, truth

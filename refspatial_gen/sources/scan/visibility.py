@@ -68,8 +68,9 @@ def in_image_share(cam: Camera, box: Box3D, sil_pixels_in_image: int) -> float:
     return max(share, 1.0 / 512) if sil_pixels_in_image > 0 else share
 
 
-def inside_box(local: np.ndarray, size: np.ndarray, pad: float, bottom_trim: float, world_z: np.ndarray,
-               bottom_z: float) -> np.ndarray:
+def inside_box(
+    local: np.ndarray, size: np.ndarray, pad: float, bottom_trim: float, world_z: np.ndarray, bottom_z: float
+) -> np.ndarray:
     """Points (in box coordinates) inside the padded box, minus a slab just above the box's lowest point."""
     ok = np.all(np.abs(local) <= size / 2.0 + pad, axis=-1)
     if bottom_trim > 0:
@@ -87,9 +88,17 @@ def close_unknown(mask: np.ndarray, unknown: np.ndarray) -> np.ndarray:
     return mask | (closed & unknown)
 
 
-def object_visibility(cam: Camera, depth: np.ndarray, box: Box3D, tol: float, pad: float, floor_margin: float,
-                      gravity_known: bool, points: np.ndarray | None = None,
-                      splat_extent: float = 0.0) -> dict[str, Any] | None:
+def object_visibility(
+    cam: Camera,
+    depth: np.ndarray,
+    box: Box3D,
+    tol: float,
+    pad: float,
+    floor_margin: float,
+    gravity_known: bool,
+    points: np.ndarray | None = None,
+    splat_extent: float = 0.0,
+) -> dict[str, Any] | None:
     """Visible mask and counts for one box; None when its projection misses the image. `tol` is the
     occlusion tolerance, `pad` the mask padding, `floor_margin` the bottom slab trimmed (metres).
 
@@ -130,27 +139,50 @@ def object_visibility(cam: Camera, depth: np.ndarray, box: Box3D, tol: float, pa
     fill = n_in / (n_in + n_thr) if n_in + n_thr else 0.0
     frac_unoccluded = n_in / (n_in + fill * n_occ) if n_in else 0.0
     visible_fraction = frac_unoccluded * in_image_share(cam, box, int(sil.sum()))
-    out = {"mask": mask, "claim": claim, "visible_pixels": n_in, "occluded_pixels": n_occ, "see_through_pixels": n_thr,
-           "visible_fraction": visible_fraction, "fraction_method": "depth_pixels"}
+    out = {
+        "mask": mask,
+        "claim": claim,
+        "visible_pixels": n_in,
+        "occluded_pixels": n_occ,
+        "see_through_pixels": n_thr,
+        "visible_fraction": visible_fraction,
+        "fraction_method": "depth_pixels",
+    }
     if points is not None:
-        lp = box.to_local(points)
-        own = points[inside_box(lp, box.size, pad, trim, points[:, 2], bottom)]
-        if len(own) >= 10:
-            uv, z = cam.project(own)
-            ok = (z > 1e-6) & (uv[:, 0] >= 0) & (uv[:, 0] < cam.width) & (uv[:, 1] >= 0) & (uv[:, 1] < cam.height)
-            u = np.floor(uv[ok, 0]).astype(int)
-            v = np.floor(uv[ok, 1]).astype(int)
-            dz = depth[v, u]
-            # a splatted map is the nearest of overlapping splats: a point's own surface can read up to
-            # one splat extent nearer on slanted surfaces, so the tolerance grows by that much
-            seen = (dz > 0) & (z[ok] <= dz + tol + splat_extent)
-            # hidden behind the object's own surface (a table's underside) is self-occlusion, not occlusion
-            near_world = cam.cam_to_world(cam.backproject(u + 0.5, v + 0.5, dz))
-            self_hidden = (dz > 0) & box.contains(near_world, pad)
-            seen |= self_hidden
-            if seen.any():  # else the mask rests on other points than the object's own: keep the pixel estimate
-                out["visible_fraction"] = float(seen.sum()) / len(own)
-                out["fraction_method"] = "object_points"
-            out["object_points"] = int(len(own))
+        _point_fraction(out, cam, depth, box, points, pad, trim, tol, splat_extent)
     return out
 
+
+def _point_fraction(
+    out: dict[str, Any],
+    cam: Camera,
+    depth: np.ndarray,
+    box: Box3D,
+    points: np.ndarray,
+    pad: float,
+    trim: float,
+    tol: float,
+    splat_extent: float,
+) -> None:
+    """With a point cloud: the visible fraction is the share of the object's own points in the image and not
+    hidden by something outside the box (updates `out` in place)."""
+    bottom = box.bottom_z
+    lp = box.to_local(points)
+    own = points[inside_box(lp, box.size, pad, trim, points[:, 2], bottom)]
+    if len(own) >= 10:
+        uv, z = cam.project(own)
+        ok = (z > 1e-6) & (uv[:, 0] >= 0) & (uv[:, 0] < cam.width) & (uv[:, 1] >= 0) & (uv[:, 1] < cam.height)
+        u = np.floor(uv[ok, 0]).astype(int)
+        v = np.floor(uv[ok, 1]).astype(int)
+        dz = depth[v, u]
+        # a splatted map is the nearest of overlapping splats: a point's own surface can read up to
+        # one splat extent nearer on slanted surfaces, so the tolerance grows by that much
+        seen = (dz > 0) & (z[ok] <= dz + tol + splat_extent)
+        # hidden behind the object's own surface (a table's underside) is self-occlusion, not occlusion
+        near_world = cam.cam_to_world(cam.backproject(u + 0.5, v + 0.5, dz))
+        self_hidden = (dz > 0) & box.contains(near_world, pad)
+        seen |= self_hidden
+        if seen.any():  # else the mask rests on other points than the object's own: keep the pixel estimate
+            out["visible_fraction"] = float(seen.sum()) / len(own)
+            out["fraction_method"] = "object_points"
+        out["object_points"] = int(len(own))
