@@ -136,9 +136,10 @@ LINT_PATHS ?= refspatial_gen/core refspatial_gen/graph refspatial_gen/qa refspat
 	tests/test_size_limits.py tests/test_sim_cli.py tests/helpers/scenes.py
 TYPED_PATHS ?= refspatial_gen/core refspatial_gen/graph refspatial_gen/qa
 # every recipe and template file, except recipes that name files made by a set-up step this machine may not
-# have run (a local model folder, catalogs imported into out/assets/); their runs check them before any work
+# have run (a local model folder, catalogs imported into out/assets/, the Blender environment); their runs check
+# them before any work
 RECIPE_NEEDS_SETUP = recipes/image_depth_anything.yaml recipes/sim_ycb.yaml recipes/sim_textured.yaml \
-	recipes/photos.yaml recipes/scan_perception.yaml
+	recipes/photos.yaml recipes/scan_perception.yaml recipes/sim_blender.yaml
 RECIPE_LINT ?= $(filter-out $(RECIPE_NEEDS_SETUP),$(wildcard recipes/*.yaml)) recipes/templates/*.yaml
 
 lint: setup-test
