@@ -316,14 +316,22 @@ class KeyStep:
 
     type: str  # "Position" | "Orientation" | "Size"
     phrase: str  # exact target phrase used in the trace
-    value: list[float]  # normalised (x, y) | unit vector (camera frame) | metres
+    value: list[float]  # normalised (x, y) | unit vector (camera frame) | Size: [one length in metres]
+    measure: str = ""  # Size only: which length `value` is ("height", "width" or "largest")
+    extent: list[float] | None = None  # Size only: the full 3-D size (larger / smaller horizontal, height)
 
     def to_json(self) -> dict[str, Any]:
-        return {"type": self.type, "phrase": self.phrase, "value": [round(float(v), 3) for v in self.value]}
+        d: dict[str, Any] = {"type": self.type, "phrase": self.phrase, "value": [round(float(v), 3) for v in self.value]}
+        if self.measure:
+            d["measure"] = self.measure
+        if self.extent is not None:
+            d["extent"] = [round(float(v), 3) for v in self.extent]
+        return d
 
     @classmethod
     def from_json(cls, d: dict[str, Any]) -> KeyStep:
-        return cls(d["type"], d["phrase"], list(d["value"]))
+        ext = d.get("extent")
+        return cls(d["type"], d["phrase"], list(d["value"]), str(d.get("measure", "")), None if ext is None else list(ext))
 
 
 @dataclass(eq=False)

@@ -77,7 +77,7 @@ class Choose(Op):
         for i, o in enumerate(env[extra]):
             keys.pos(o, f"the object marked ({keys.letters[i]})")
             if sized:
-                keys.size(o)
+                keys.size(o, keys.size_measure(rel))
 
     def verify(self, run: Run, a: dict[str, Any], prev: Any, st: dict[str, Any]) -> Any:
         opts = list(a["options"])

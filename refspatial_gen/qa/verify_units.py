@@ -1,0 +1,37 @@
+"""Written lengths read back for `verify`: `35 centimeters`, `13.8 inches`, `1.42 meters`, `4.7 feet`.
+
+Why its own module: the verifier must not share the generator's formatting code (qa/render.py). This reads
+a length as a person would, checks that it is written with the precision its unit takes (whole centimetres
+and inches from 10 up, one decimal below; metres two decimals below 10, one above; feet one decimal), and
+returns the value in metres with the rounding that precision allows.
+"""
+
+from __future__ import annotations
+
+import re
+
+_LENGTH = re.compile(r"^(\d+(?:\.(\d+))?) (meters?|centimeters?|feet|foot|inch|inches)$")
+_METRES = {"meter": 1.0, "centimeter": 0.01, "foot": 0.3048, "feet": 0.3048, "inch": 0.0254, "inches": 0.0254}
+
+
+def stated_length(text: str) -> tuple[float, float] | str:
+    """(metres, tolerance in metres) of a written length, or what is wrong with it."""
+    m = _LENGTH.match(text.strip())
+    if m is None:
+        return f"{text!r} is not a number with a length unit (meters, centimeters, feet, inches)"
+    num, frac, unit = m.group(1), m.group(2) or "", m.group(3)
+    value = float(num)
+    per = _METRES.get(unit, _METRES.get(unit.rstrip("s"), 0.0))
+    decimals = len(frac)
+    if unit in ("feet", "foot"):
+        want = 1
+    elif unit.startswith(("centimeter", "inch")):
+        want = 0 if value >= 10 else 1
+    else:
+        want = 2 if value < 10 else 1
+    if decimals != want:
+        return f"{text!r}: {unit} are written with {want} decimal(s) at this size"
+    singular = unit in ("meter", "centimeter", "foot", "inch")
+    if singular != (num == "1"):
+        return f"{text!r}: unit {unit!r} does not agree with the number"
+    return value * per, 0.5 * 10.0**-decimals * per + 1e-9
