@@ -19,7 +19,7 @@ from refspatial_gen.qa.planner import plan_program
 from refspatial_gen.qa.program import Ref, SlotSpec, Step, Template
 from refspatial_gen.qa.slots import BUILTIN_PLACEHOLDERS, SLOT_FORMS, Ctx, Path, compile_slots
 from refspatial_gen.qa.steps import assign_binds, assign_bounds, compile_program, flat_refs
-from refspatial_gen.qa.text import Seq, TextSyntaxError, parse, placeholders
+from refspatial_gen.qa.text import Seq, TextSyntaxError, optional_only_placeholders, parse, placeholders
 from refspatial_gen.yamlpos import line_of, load_yaml
 
 __all__ = ["MAX_STEPS", "Ref", "SlotSpec", "Step", "Template", "compile_templates", "load_template_file"]
@@ -152,6 +152,12 @@ def _text_slots(
     text_slots = set()
     for j, seq in enumerate(texts + (instr or [])):
         sub = ("text", j) if j < len(texts) else ("instruction", j - len(texts))
+        for ph in sorted(optional_only_placeholders(seq)):
+            ctx.err(
+                path + sub,
+                f"{{{ph}}} appears only inside an optional [...] part: some questions would not say it "
+                "(write it outside the brackets)",
+            )
         for ph in sorted(placeholders(seq)):
             base, _, form = ph.partition(".")
             if base in BUILTIN_PLACEHOLDERS and not form:
