@@ -25,7 +25,8 @@ from refspatial_gen.sources.toy import TABLE, toy_frame
 POINTS = re.compile(r"^\[\(\d\.\d{3}, \d\.\d{3}\)\]$")
 CHOICE = re.compile(r"^\([A-H]\)( .+)?$")
 TRACE = re.compile(
-    r"^<think>(\[(Position|Orientation|Size)\] \[[^\]]+\]: (\([-0-9., ]+\)|\d+\.\d{3} m)\n?)+</think><answer>.+</answer>$"
+    r"^<think>(\[(Position|Orientation|Size)\] \[[^\]]+\]: (\([-0-9., ]+\)|\d+\.\d{3} m)\n?)+"
+    r"</think><answer>.+</answer>$"
 )
 
 

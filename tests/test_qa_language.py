@@ -25,8 +25,21 @@ from refspatial_gen.qa.wording import Renderer
 from refspatial_gen.rewards.parse import parse_number
 from refspatial_gen.sources.toy import toy_frame
 
-ADJECTIVAL = ("taller", "shorter", "bigger", "larger", "smaller", "wider", "broader", "thinner", "narrower",
-              "closer to", "nearer to", "farther from", "further from")
+ADJECTIVAL = (
+    "taller",
+    "shorter",
+    "bigger",
+    "larger",
+    "smaller",
+    "wider",
+    "broader",
+    "thinner",
+    "narrower",
+    "closer to",
+    "nearer to",
+    "farther from",
+    "further from",
+)
 
 
 @pytest.fixture(scope="module")
@@ -75,7 +88,11 @@ def test_size_key_step_is_one_length_in_metres(many):
                 j = ks.to_json()
                 assert j["value"] == [round(want, 3)] and j["measure"] == ks.measure and len(j["extent"]) == 3
             rels = set(q.relations)
-            if q.steps >= 2 and rels <= {"tall", "short"} | {"left", "right", "front", "behind"} and rels & {"tall", "short"}:
+            if (
+                q.steps >= 2
+                and rels <= {"tall", "short"} | {"left", "right", "front", "behind"}
+                and rels & {"tall", "short"}
+            ):
                 assert all(k.measure == "height" for k in q.key_steps if k.type == "Size")
     assert seen["height"] and seen["largest"], seen
 
@@ -106,9 +123,17 @@ def test_one_choice_answer_form_per_template(many):
 
 def test_answer_form_is_checked_at_compile_time():
     errors: list[RecipeError] = []
-    doc = {"templates": [{"name": "t", "answer_form": "words", "slots": {"a": "object", "b": "anchor"},
-                          "program": [{"op": "compare", "relation": "left", "a": "a", "b": "b"}],
-                          "text": ["Is {a} left of {b}?"]}]}
+    doc = {
+        "templates": [
+            {
+                "name": "t",
+                "answer_form": "words",
+                "slots": {"a": "object", "b": "anchor"},
+                "program": [{"op": "compare", "relation": "left", "a": "a", "b": "b"}],
+                "text": ["Is {a} left of {b}?"],
+            }
+        ]
+    }
     compile_templates(doc, "f.yaml", {}, errors)
     assert any("answer_form" in e.message for e in errors)
 
@@ -136,8 +161,10 @@ def test_units_follow_magnitude():
     assert fmt_length(0.3048, unit="ft") == "1.0 feet" and fmt_length(0.01, unit="cm") == "1.0 centimeters"
 
 
-@pytest.mark.parametrize("text", ["35.0 centimeters", "1.4 meters", "12 feet", "3 inches", "35 meter",
-                                  "1 meters", "35 cm", "about 35 centimeters"])
+@pytest.mark.parametrize(
+    "text",
+    ["35.0 centimeters", "1.4 meters", "12 feet", "3 inches", "35 meter", "1 meters", "35 cm", "about 35 centimeters"],
+)
 def test_verify_rejects_lengths_at_the_wrong_precision_or_form(text):
     assert isinstance(stated_length(text), str)
 
@@ -181,11 +208,20 @@ def test_relative_clause_form_and_category_synonyms():
     """`{rel.mod}` puts 'that is' / 'which is' before adjectival wordings; a category is sometimes named by
     a curated synonym, never by one that is another object's category in the frame."""
     assert "couch" in lexicon.category_synonyms("sofa")
-    doc = {"templates": [{"name": "t", "slots": {"cat": "category", "rel": {"type": "relation", "choices": ["tall", "left"]},
-                                                 "a": "anchor"},
-                          "program": [{"op": "filter", "category": "cat"}, {"op": "relate", "relation": "rel", "anchor": "a"},
-                                      {"op": "locate"}],
-                          "text": ["Point to the {cat} {rel.mod} {a}."]}]}
+    doc = {
+        "templates": [
+            {
+                "name": "t",
+                "slots": {"cat": "category", "rel": {"type": "relation", "choices": ["tall", "left"]}, "a": "anchor"},
+                "program": [
+                    {"op": "filter", "category": "cat"},
+                    {"op": "relate", "relation": "rel", "anchor": "a"},
+                    {"op": "locate"},
+                ],
+                "text": ["Point to the {cat} {rel.mod} {a}."],
+            }
+        ]
+    }
     errors: list[RecipeError] = []
     (t,) = compile_templates(doc, "f.yaml", {}, errors)
     assert not errors
@@ -202,7 +238,7 @@ def test_relative_clause_form_and_category_synonyms():
 
 
 def test_qa_id_names_the_asked_view(many):
-    for fs, _gs, qas in many:
+    for _fs, _gs, qas in many:
         assert len({q.qa_id for q in qas}) == len(qas)
         for q in qas:
             assert q.qa_id.rsplit(":", 1)[0] == q.frame_ids[0], (q.qa_id, q.frame_ids)
@@ -212,9 +248,16 @@ def test_qa_id_names_the_asked_view(many):
 
 def _lint(text: str) -> list[RecipeError]:
     errors: list[RecipeError] = []
-    doc = {"templates": [{"name": "t", "slots": {"a": "object", "b": "anchor"},
-                          "program": [{"op": "compare", "relation": "left", "a": "a", "b": "b"}],
-                          "text": ["Is {a} left of {b}?", text]}]}
+    doc = {
+        "templates": [
+            {
+                "name": "t",
+                "slots": {"a": "object", "b": "anchor"},
+                "program": [{"op": "compare", "relation": "left", "a": "a", "b": "b"}],
+                "text": ["Is {a} left of {b}?", text],
+            }
+        ]
+    }
     compile_templates(doc, "f.yaml", {("templates", 0, "text", 1): 7}, errors)
     return errors
 
@@ -245,9 +288,9 @@ def test_linter_runs_on_template_files(tmp_path):
         "    program:\n"
         "      - {op: compare, relation: left, a: a, b: b}\n"
         "    text:\n"
-        "      - \"Is {a} left of {b}?\"\n"
-        "      - \"Is {a} left of[ {b}]?\"\n"
-        "      - \"Is {a} left of {b}[ a|b]?\"\n"
+        '      - "Is {a} left of {b}?"\n'
+        '      - "Is {a} left of[ {b}]?"\n'
+        '      - "Is {a} left of {b}[ a|b]?"\n'
     )
     got = sorted((e.line, e.message[:20]) for e in lint_file(p))
     assert [g[0] for g in got] == [8, 9], got

@@ -321,7 +321,11 @@ class KeyStep:
     extent: list[float] | None = None  # Size only: the full 3-D size (larger / smaller horizontal, height)
 
     def to_json(self) -> dict[str, Any]:
-        d: dict[str, Any] = {"type": self.type, "phrase": self.phrase, "value": [round(float(v), 3) for v in self.value]}
+        d: dict[str, Any] = {
+            "type": self.type,
+            "phrase": self.phrase,
+            "value": [round(float(v), 3) for v in self.value],
+        }
         if self.measure:
             d["measure"] = self.measure
         if self.extent is not None:
@@ -331,7 +335,9 @@ class KeyStep:
     @classmethod
     def from_json(cls, d: dict[str, Any]) -> KeyStep:
         ext = d.get("extent")
-        return cls(d["type"], d["phrase"], list(d["value"]), str(d.get("measure", "")), None if ext is None else list(ext))
+        return cls(
+            d["type"], d["phrase"], list(d["value"]), str(d.get("measure", "")), None if ext is None else list(ext)
+        )
 
 
 @dataclass(eq=False)

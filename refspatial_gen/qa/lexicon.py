@@ -140,7 +140,9 @@ def _load_synonyms(path: Path = SYNONYMS_FILE) -> tuple[dict[str, tuple[str, ...
     with open(path, encoding="utf-8") as f:
         data: dict[str, Any] = yaml.safe_load(f) or {}
     cats = {str(k): tuple(str(x) for x in v) for k, v in sorted((data.get("categories") or {}).items())}
-    rels = {str(k): {str(f): [str(x) for x in xs] for f, xs in v.items()} for k, v in (data.get("relations") or {}).items()}
+    rels = {
+        str(k): {str(f): [str(x) for x in xs] for f, xs in v.items()} for k, v in (data.get("relations") or {}).items()
+    }
     return cats, rels
 
 
