@@ -317,7 +317,7 @@ class KeyStep:
     type: str  # "Position" | "Orientation" | "Size"
     phrase: str  # exact target phrase used in the trace
     value: list[float]  # normalised (x, y) | unit vector (camera frame) | Size: [one length in metres]
-    measure: str = ""  # Size only: which length `value` is ("height", "width" or "largest")
+    measure: str = ""  # Size only: which length `value` is ("height", "width", "volume": side of an equal cube)
     extent: list[float] | None = None  # Size only: the full 3-D size (larger / smaller horizontal, height)
 
     def to_json(self) -> dict[str, Any]:

@@ -56,8 +56,9 @@ def plan_keys(t: Template) -> tuple[KeyPlan, ...]:
 
 
 # what a size comparison compares (graph/relations/sizes.py: tall = vertical extent, wide = larger horizontal
-# extent, big = box volume, whose one-length summary is the largest side)
-_MEASURE_OF = {"height": "height", "width": "width", "volume": "largest"}
+# extent, big = box volume, stated as the side of a cube of that volume so the trace orders objects as the
+# answer does; a largest side would call a banana bigger than an apple)
+_MEASURE_OF = {"height": "height", "width": "width", "volume": "volume"}
 
 
 def size_measure(rel: str) -> str:
@@ -65,16 +66,17 @@ def size_measure(rel: str) -> str:
     r = _RELATIONS[rel]
     base = r.mirror_of or r.id
     attr = DERIVED.get(base, ("volume",))[0]
-    return _MEASURE_OF.get(attr, "largest")
+    return _MEASURE_OF.get(attr, "volume")
 
 
-def size_scalar(extent: list[float], measure: str) -> float:
-    """One length of a (larger horizontal, smaller horizontal, height) size, rounded as key steps are."""
+def size_scalar(extent: list[float], measure: str, volume: float) -> float:
+    """One length of an object: its height or larger horizontal extent (from the rounded (larger horizontal,
+    smaller horizontal, height) size), or the side of a cube of its box volume, rounded as key steps are."""
     if measure == "height":
         return extent[2]
     if measure == "width":
         return extent[0]
-    return max(extent)
+    return round(float(volume) ** (1.0 / 3.0), 3)
 
 
 def one(v: Any) -> int:
@@ -108,15 +110,16 @@ class KeyWriter:
             done.add(ph)
             self.out.append(KeyStep("Position", ph, self.idx.key_point(o)))
 
-    def size(self, o: int, measure: str = "largest") -> None:
+    def size(self, o: int, measure: str = "volume") -> None:
         """RoboRefer's Size step: one length in metres, the one the reasoning compares (`measure`: "height",
-        "width" or "largest"); the full 3-D size stays in the step's `extent`."""
+        "width" or "volume", the side of a cube of the box's volume); the full 3-D size stays in `extent`."""
         ph = self.name(o)
         done = self._done["Size"]
         if ph not in done:
             done.add(ph)
             ext = round_key(self.idx.size(o))
-            self.out.append(KeyStep("Size", ph, [size_scalar(ext, measure)], measure, ext))
+            scalar = size_scalar(ext, measure, self.idx.objects[o].box.volume)
+            self.out.append(KeyStep("Size", ph, [scalar], measure, ext))
 
     def orient(self, o: int) -> None:
         ph = self.name(o)

@@ -366,7 +366,8 @@ def _check_trace(qa: QAPair, w: World) -> list[str]:
         elif oid is None:
             out.append(f"key step phrase {ks.phrase!r} names no object")
         elif ks.type == "Size":
-            out += _check_size_step(ks, _size(w.objects[oid].box))
+            box = w.objects[oid].box
+            out += _check_size_step(ks, _size(box), float(np.prod(box.size)))
         elif ks.type == "Orientation":
             o = w.objects[oid]
             if o.front is None:
@@ -379,10 +380,10 @@ def _check_trace(qa: QAPair, w: World) -> list[str]:
     return out
 
 
-def _check_size_step(ks: Any, ref: tuple[float, float, float]) -> list[str]:
+def _check_size_step(ks: Any, ref: tuple[float, float, float], volume: float) -> list[str]:
     """A Size step states one length in metres (RoboRefer's scalar): the box's height, larger horizontal
-    extent or largest side, as its `measure` says; its `extent` is the box's full size."""
-    want = {"height": ref[2], "width": ref[0], "largest": max(ref)}.get(ks.measure)
+    extent or the side of a cube of its volume, as its `measure` says; its `extent` is the box's full size."""
+    want = {"height": ref[2], "width": ref[0], "volume": volume ** (1.0 / 3.0)}.get(ks.measure)
     out = []
     if want is None or len(ks.value) != 1:
         return [f"key step Size {ks.phrase!r}: value {ks.value} / measure {ks.measure!r} is not one named length"]
