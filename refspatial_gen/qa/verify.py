@@ -20,7 +20,7 @@ import numpy as np
 from refspatial_gen.core.mask import denormalise_point
 from refspatial_gen.core.model import Frame, FreeSpaceRegion, QAPair, Sample, SceneGraph
 from refspatial_gen.qa.ops import OPS
-from refspatial_gen.qa.verify_units import stated_length
+from refspatial_gen.qa.verify_units import LENGTHS, check_length_text, check_size_step
 from refspatial_gen.qa.verify_world import ANGLE_TOL, LENGTH_ABS_TOL, LENGTH_REL_TOL, Fail, Run, Undecided, World, _size
 
 LETTERS = "ABCDEFGH"
@@ -47,7 +47,6 @@ def _close(a: float, b: float, q: str) -> bool:
 # ------------------------------------------------------------------------------------------ checks
 _POINTS = re.compile(r"\(\s*(-?[0-9.]+)\s*,\s*(-?[0-9.]+)\s*\)")
 _TRACE_LINE = re.compile(r"^\[(Position|Orientation|Size)\] \[(.+)\]: (?:\(([^)]*)\)|(-?[0-9.]+) m)$")
-LENGTHS = ("distance", "depth", "height", "width")  # quantities answered as lengths
 
 
 def _answer_key(v: Any) -> Any:
@@ -245,12 +244,7 @@ def _check_number(qa: QAPair, s: dict[str, Any], final: Any) -> list[str]:
     if not _close(v, got, q):
         out.append(f"{q}: answer {v:.4f} but the geometry gives {got:.4f}")
     if q in LENGTHS:  # a length in any unit people use, at its unit's precision
-        stated = stated_length(qa.answer)
-        if isinstance(stated, str):
-            out.append(f"answer text: {stated}")
-        elif abs(stated[0] - v) > stated[1]:
-            out.append(f"answer text {qa.answer!r} does not render the value {v:.4f} m")
-        return out
+        return out + check_length_text(qa.answer, v)
     nums = re.findall(r"-?[0-9]+(?:\.[0-9]+)?", qa.answer)
     if not nums:
         out.append(f"answer text {qa.answer!r} has no number")
@@ -367,7 +361,7 @@ def _check_trace(qa: QAPair, w: World) -> list[str]:
             out.append(f"key step phrase {ks.phrase!r} names no object")
         elif ks.type == "Size":
             box = w.objects[oid].box
-            out += _check_size_step(ks, _size(box), float(np.prod(box.size)))
+            out += check_size_step(ks, _size(box), float(np.prod(box.size)))
         elif ks.type == "Orientation":
             o = w.objects[oid]
             if o.front is None:
@@ -377,20 +371,6 @@ def _check_trace(qa: QAPair, w: World) -> list[str]:
             v = v / np.linalg.norm(v)
             if any(abs(a - b) > KEY_TOL for a, b in zip(ks.value, v)):
                 out.append(f"key step Orientation {ks.phrase!r} {ks.value} differs from {np.round(v, 3).tolist()}")
-    return out
-
-
-def _check_size_step(ks: Any, ref: tuple[float, float, float], volume: float) -> list[str]:
-    """A Size step states one length in metres (RoboRefer's scalar): the box's height, larger horizontal
-    extent or the side of a cube of its volume, as its `measure` says; its `extent` is the box's full size."""
-    want = {"height": ref[2], "width": ref[0], "volume": volume ** (1.0 / 3.0)}.get(ks.measure)
-    out = []
-    if want is None or len(ks.value) != 1:
-        return [f"key step Size {ks.phrase!r}: value {ks.value} / measure {ks.measure!r} is not one named length"]
-    if abs(ks.value[0] - want) > KEY_TOL:
-        out.append(f"key step Size {ks.phrase!r} {ks.measure} {ks.value[0]} differs from the box's {want:.3f}")
-    if ks.extent is None or any(abs(a - b) > KEY_TOL for a, b in zip(ks.extent, ref)):
-        out.append(f"key step Size {ks.phrase!r} extent {ks.extent} differs from the box {[round(r, 3) for r in ref]}")
     return out
 
 
