@@ -23,7 +23,7 @@ SMOLLM_GGUF := $(CACHE_DIR)/models/SmolLM2-135M-Instruct.Q4_1.gguf
 REWRITE_STAMP := $(VENV)/.installed-rewrite-$(HASH)
 REWRITE ?=
 
-.PHONY: setup setup-test setup-rewrite shards test test-slow test-all bench preview lint clean audit assets-shared assets-textured reliability
+.PHONY: setup setup-blender setup-test setup-rewrite shards test test-slow test-all bench preview lint clean audit assets-shared assets-textured reliability
 
 $(STAMP): pyproject.toml
 	@bash scripts/ensure-system-libs.sh
@@ -33,6 +33,22 @@ $(STAMP): pyproject.toml
 	@$(BIN)/python -m pip install -q -e .
 	@rm -f $(VENV)/.installed-[0-9a-f]*
 	@touch $@
+
+# Blender as a Python module (bpy 5.0.1, ~0.4 GB) for `renderer: blender`: its own environment, because bpy
+# needs Python 3.11 and numpy < 2 (requirements-blender.txt); the generator talks to it through a worker process
+BLENDER_VENV := .venv-blender
+BLENDER_STAMP := $(BLENDER_VENV)/.installed-$(shell cat requirements-blender.txt | sha1sum | cut -c1-12)
+BLENDER_LIBS := libx11-6 libxext6 libxrender1 libxfixes3 libxi6 libxkbcommon0 libsm6 libice6 libgl1
+$(BLENDER_STAMP): requirements-blender.txt
+	@bash scripts/ensure-system-libs.sh $(BLENDER_LIBS)
+	@$(PY) -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))' || { echo "bpy 5.0.1 needs Python 3.11 (PY=$(PY))"; exit 1; }
+	@test -x $(BLENDER_VENV)/bin/python || $(PY) -m venv $(BLENDER_VENV)
+	@echo "installing Blender (bpy) into $(BLENDER_VENV) (first use only)"
+	@$(BLENDER_VENV)/bin/python -m pip install -q -r requirements-blender.txt
+	@rm -f $(BLENDER_VENV)/.installed-*
+	@touch $@
+
+setup-blender: $(BLENDER_STAMP)
 
 # the tests also need the optional extras: Ray (scale-out), torch + transformers + onnxruntime (depth models),
 # trl (the reward adapters run inside a real GRPOTrainer), HF datasets + pyarrow (Parquet export),
@@ -72,17 +88,18 @@ shards: setup
 test: setup-test
 	$(BIN)/python -m pytest -q -m "not slow" $(PYTEST_ARGS)
 
-test-slow: setup-test setup-rewrite
+# the slow tests and the bench also render with Blender (setup-blender: ~20 s, ~1 GB on disk)
+test-slow: setup-test setup-rewrite setup-blender
 	$(BIN)/python -m pytest -q -m slow $(PYTEST_ARGS); rc=$$?; [ $$rc -eq 5 ] && rc=0; exit $$rc
 
-test-all: setup-test setup-rewrite
+test-all: setup-test setup-rewrite setup-blender
 	$(BIN)/python -m pytest -q $(PYTEST_ARGS)
 
 # every broken-input and hostile-recipe case, rerun; rewrites the tables in docs/reliability.md
 reliability: setup-test
 	$(BIN)/python scripts/reliability.py --write-doc
 
-bench: setup-test $(if $(REWRITE),setup-rewrite)
+bench: setup-test setup-blender $(if $(REWRITE),setup-rewrite)
 	$(BIN)/python -m refspatial_gen.bench $(if $(REWRITE),--rewrite) $(BENCH_ARGS)
 
 preview: setup

@@ -1,6 +1,7 @@
 """`make bench`: throughput figures of every stage, measured on this machine (never asserted in tests).
 
-Sections: the simulated pipeline end to end with a per-stage breakdown and peak memory; QA generation
+Sections: the simulated pipeline end to end with a per-stage breakdown and peak memory; the same scenes
+rendered by Blender Cycles (frames/s per core, agreement with MuJoCo's depth and masks); QA generation
 from cached scene graphs; the image source per image; streaming reads vs. WebDataset; read throughput
 of every export format on the same samples; and the run executor's scaling from 1 to 2 workers and its
 memory when the number of scenes grows 10x. Opt-in (`--rewrite`, `make bench REWRITE=1`): LLM rewrites
@@ -78,6 +79,57 @@ def bench_sim(n_scenes: int, work: Path) -> dict[str, Any]:
             "frames_per_s": round(frames_n / wall, 2), "qa_per_s": round(qa_n / wall, 1),
             "ms_per_frame": {k: round(1000 * v / max(frames_n, 1), 1) for k, v in t.items()},
             "peak_rss_mb": round(_peak_mb(), 1), "size": "%dx%d" % (spec.config.get("width", 640), spec.config.get("height", 480))}
+
+
+def bench_blender(n_scenes: int) -> dict[str, Any]:
+    """The sim pipeline with `renderer: blender` (recipes/sim_blender.yaml: the default recipe's scenes, 640x480,
+    16 samples + OpenImageDenoise) on one Cycles thread, so frames/s is per core; and how well Blender's own
+    depth and object-index passes agree with MuJoCo's on these frames (mean and worst; no frame dropped here)."""
+    import numpy as np
+
+    from refspatial_gen.core.errors import DropUnit
+    from refspatial_gen.recipe import load_recipe
+    from refspatial_gen.run.plan import unit_rng
+    from refspatial_gen.sources.sim import blender_render, generate
+
+    recipe_path = ROOT / "recipes" / "sim_blender.yaml"
+    cfg = next(s for s in load_recipe(DEFAULT_RECIPE).sources if s.kind == "sim").config
+    blender = dict(next(s for s in load_recipe(recipe_path).sources if s.kind == "sim").config["blender"])
+    why = blender_render.missing_reason(blender_render.settings({"blender": blender}))
+    if why:
+        return {"skipped": why}
+    blender.update(threads=1, min_mask_iou=0.0, min_depth_agree=0.0)
+    cfg = {**cfg, "renderer": "blender", "blender": blender}
+    s = blender_render.settings(cfg)
+    try:  # starts the Blender worker
+        generate("sim:warmup", unit_rng(0, "warmup"), {**cfg, "width": 64, "height": 48})
+    except DropUnit:
+        pass
+    blender_render.TIMES.clear()
+    t: dict[str, float] = {}
+    checks, dropped = [], {}
+    t0 = time.perf_counter()
+    for i in range(n_scenes):
+        key = f"sim:{i:06d}"
+        try:
+            frames = generate(key, unit_rng(0, key), cfg, timings=t)
+        except DropUnit as e:
+            dropped[e.reason] = dropped.get(e.reason, 0) + 1
+            continue
+        checks += [f.meta["render_check"] for f in frames]
+    wall = time.perf_counter() - t0
+    n = len(checks)
+    agree = {k: {"mean": round(float(np.mean([c[k] for c in checks])), 4), "worst": min(c[k] for c in checks)}
+             for k in ("mask_iou_mean", "mask_iou_min", "depth_agree")} if checks else {}
+    d = blender_render.settings({})
+    below = sum(c["mask_iou_min"] < d["min_mask_iou"] or c["depth_agree"] < d["min_depth_agree"] for c in checks)
+    return {"scenes": n_scenes, "frames": n, "dropped": dropped, "seconds": round(wall, 1),
+            "frames_per_s_per_core": round(n / wall, 4) if wall else 0.0, "s_per_frame": round(wall / max(n, 1), 2),
+            "ms_per_frame": {k: round(1000 * v / max(n, 1)) for k, v in t.items()},
+            "blender_ms_per_frame": {k: round(1000 * v / max(n, 1)) for k, v in blender_render.TIMES.items()},
+            "agreement_with_mujoco": agree, "frames_below_default_thresholds": below,
+            "settings": {k: s[k] for k in ("device", "samples", "denoiser", "light_bounces", "threads")},
+            "size": "%dx%d" % (cfg.get("width", 640), cfg.get("height", 480))}
 
 
 def bench_qa(seconds: float) -> dict[str, Any]:
@@ -169,8 +221,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scenes", type=int, default=24, help="scenes for the simulated pipeline")
     ap.add_argument("--scale-scenes", type=int, default=96, help="scenes for the 1 vs 2 worker scaling run")
     ap.add_argument("--mem-scenes", type=int, default=16, help="scenes for the memory run (and 10x as many)")
+    ap.add_argument("--blender-scenes", type=int, default=4, dest="blender_scenes", help="scenes for the Blender renderer")
     ap.add_argument("--only", nargs="*", default=None,
-                    choices=["sim", "qa", "image", "stream", "formats", "scale", "eval", "manifest", "rewrite",
+                    choices=["sim", "blender", "qa", "image", "stream", "formats", "scale", "eval", "manifest", "rewrite",
                              "perception"])
     ap.add_argument("--rewrite", action="store_true", help="add the (slow) LLM rewrite section")
     ap.add_argument("--rewrite-scenes", type=int, default=2, help="default-recipe scenes whose pairs are rewritten")
@@ -181,7 +234,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="e.g. owlv2,sam2,depth-pro (default grounding-dino,sam,depth-anything)")
     ap.add_argument("--json", default=None, help="also write the figures to this file")
     args = ap.parse_args(argv)
-    sections = args.only or (["sim", "qa", "image", "stream", "formats", "scale", "eval", "manifest"]
+    sections = args.only or (["sim", "blender", "qa", "image", "stream", "formats", "scale", "eval", "manifest"]
                              + (["rewrite"] if args.rewrite else []) + (["perception"] if args.perception else []))
     figures: dict[str, Any] = {"machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.python_version()}"}
     work = Path(tempfile.mkdtemp(prefix="refspatial-bench-"))
@@ -190,6 +243,8 @@ def main(argv: list[str] | None = None) -> int:
             t0 = time.perf_counter()
             if name == "sim":
                 figures["sim"] = bench_sim(args.scenes, work)
+            elif name == "blender":
+                figures["blender"] = bench_blender(args.blender_scenes)
             elif name == "qa":
                 figures["qa"] = bench_qa(5.0)
             elif name == "image":

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Installs the system libraries refspatial-gen needs (headless EGL rendering for MuJoCo, libusb for open3d)
 # when they are missing: with apt-get when running as root, otherwise stops with the exact command.
+# Extra Debian package names as arguments (`make setup-blender` passes the X11/GL libraries bpy links).
 set -euo pipefail
-PKGS=(libegl1 libegl-mesa0 libgl1-mesa-dri libopengl0 libusb-1.0-0)
+PKGS=(libegl1 libegl-mesa0 libgl1-mesa-dri libopengl0 libusb-1.0-0 "$@")
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

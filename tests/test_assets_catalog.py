@@ -102,3 +102,36 @@ def test_laptop_screen_faces_its_stored_front():
         screen = next(p for p in geo.parts if p.role == "screen")
         assert np.dot(screen.pos - lid.pos, cat.front) > 0.002  # the screen is on the front side of the lid
         assert lid.pos[0] < 0  # the lid leans back over the hinge, away from the keyboard
+
+
+BASE = ("colors:\n  red: [0.8, 0.1, 0.1]\nmaterials:\n  plastic: {specular: 0.4}\ncategories:\n  thing:\n"
+        "    builder: box\n    dims: {x: [0.1, 0.2], y: [0.1, 0.1], z: [0.1, 0.1]}\n")
+
+
+def test_a_colour_or_material_given_as_a_list_is_a_recipe_error_with_its_line(tmp_path):
+    """A nested list where a name belongs used to raise TypeError (unhashable list) out of the loader."""
+    for bad, line in (("    colors: [[red]]\n", 9), ("    colors: [red]\n    materials: [[plastic]]\n", 10),
+                      ("    colors: [red]\n    accent: [[0.1, 0.2, 0.3]]\n", 10), ("    colors: red\n", 9),
+                      ("    colors: [red]\n    scale: [room]\n", 10)):
+        p = tmp_path / f"cat{line}{len(bad)}.yaml"
+        p.write_text(BASE + bad)
+        errs = _errors(lambda: load_catalog(str(p)))
+        assert len(errs) == 1 and errs[0].file == str(p) and errs[0].line == line, (bad, errs)
+
+
+def test_bad_top_level_sections_and_material_values_are_recipe_errors(tmp_path):
+    cases = {"colors: [red]\n": "colors must be a mapping",
+             BASE.replace("{specular: 0.4}", "{specular: [0.4]}") + "    colors: [red]\n": "specular must be a number",
+             BASE.replace("{specular: 0.4}", "{gloss: 0.4}") + "    colors: [red]\n": "unknown key 'gloss'",
+             BASE.replace("[0.8, 0.1, 0.1]", "[.nan, 0.1, 0.1]") + "    colors: [red]\n": "colour 'red'",
+             BASE.replace("[0.8, 0.1, 0.1]", "[1180591620717411303423, 0.1, 0.1]") + "    colors: [red]\n": "colour 'red'",
+             BASE + "    colors: [red]\n    weight: [2]\n": "weight must be a number",
+             BASE.replace("dims: {x: [0.1, 0.2], y: [0.1, 0.1], z: [0.1, 0.1]}", "dims: [1, 2]") + "    colors: [red]\n": "dims must be a mapping"}
+    for i, (text, msg) in enumerate(cases.items()):
+        p = tmp_path / f"c{i}.yaml"
+        p.write_text(text)
+        errs = _errors(lambda: load_catalog(str(p)))
+        assert errs and any(msg in e.message for e in errs), (text, errs)
+    p = tmp_path / "ok.yaml"
+    p.write_text(BASE + "    colors: [red]\n")
+    assert load_catalog(str(p)).categories["thing"].materials == ("plastic",)

@@ -175,5 +175,5 @@ def test_imported_ycb_objects_render_with_their_labels(shared_data, tmp_path):
         px = f.rgb[o.mask.decode()].astype(float)
         if len(px) > 200:
             assert px.std() > 15, o.category  # printed label: varied colours, not a flat black silhouette
-            means.append(px.mean())
-    assert means and max(means) > 70
+            means.append(np.percentile(px.max(axis=1), 90))  # the bright part of the label (dark objects: a drill)
+    assert means and max(means) > 100  # a black-rendered texture stays near 0

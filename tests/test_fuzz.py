@@ -98,8 +98,6 @@ def test_mutated_templates_compile_or_report_errors(data):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, raises=TypeError, reason="known bug outside this part: a colour or material "
-                   "given as a list raises TypeError in assets/catalog.py (owned by the sim source; remove when fixed)")
 @SLOW
 @given(st.data())
 def test_mutated_catalogs_load_or_raise_recipe_errors(tmp_path_factory, data):

@@ -17,7 +17,9 @@ region's visible pixels (Placement), 0 elsewhere, the image's size.
 Which QA pairs: point answers (locate, identify) go to Location, free-space answers (placement) to
 Placement, from the requested splits (default: test); QA pairs of the `unseen` split go to Unseen. Every
 item is checked the benchmark's way before it is written: the gold point, read as RoboRefer's script reads
-it (`int(x * W)`, `int(y * H)`), must fall inside the mask.
+it (`int(x * W)`, `int(y * H)`), must fall inside the mask. Files are numbered per folder (no sample id
+in a name, so ids never collide) and created once (export_files.write_new); `check_export` compares every
+image with the stored view of its QA pair, and `shards.export` writes the whole folder atomically.
 """
 
 from __future__ import annotations
@@ -32,12 +34,14 @@ import numpy as np
 from refspatial_gen.core.mask import RLE
 from refspatial_gen.rewards.gold import build_gold
 from refspatial_gen.run.splits import keep_sample, sample_split, splits_of_samples
+from refspatial_gen.shards.export_files import write_new
 from refspatial_gen.shards.format import RawSample
 
 SUFFIX = ("Your answer should be formatted as a list of tuples, i.e. [(x1, y1)], where each tuple contains the x and "
           "y coordinates of a point satisfying the conditions above. The coordinates should be between 0 and 1, "
           "indicating the normalized pixel locations of the points in the image.")
 TASKS = {"points": ("Location", "location"), "region": ("Placement", "placement")}
+TASKS_FOLDERS = ("Location", "Placement", "Unseen")
 _LEAD = re.compile(r"^(?:please\s+)?(?:point\s+(?:out|to|at)|locate|find|show\s+me|identify|mark)\s+(?P<obj>.+?)[.?!]?$", re.I)
 _WHERE = re.compile(r"^where\s+is\s+(?P<obj>.+?)\?$", re.I)
 
@@ -130,12 +134,55 @@ def export_refspatial_bench(raws: Iterable[RawSample], out: Path | str, *,
             d = out / folder
             (d / "image").mkdir(parents=True, exist_ok=True)
             (d / "mask").mkdir(parents=True, exist_ok=True)
-            (d / "image" / f"{i}.png").write_bytes(_png(np.ascontiguousarray(rgb[..., ::-1])))
-            (d / "mask" / f"{i}.png").write_bytes(_png(mask.astype(np.uint8) * 255))
+            write_new(d / "image" / f"{i}.png", _png(np.ascontiguousarray(rgb[..., ::-1])))
+            write_new(d / "mask" / f"{i}.png", _png(mask.astype(np.uint8) * 255))
             items[folder].append({"id": i, "object": object_of(prompt, qa), "prompt": prompt, "suffix": SUFFIX,
                                   "rgb_path": f"image/{i}.png", "mask_path": f"mask/{i}.png", "category": category,
                                   "step": int(qa["steps"]), "qa_id": qa["qa_id"]})
     for folder, rows in items.items():
         if rows:
-            (out / folder / "question.json").write_text(json.dumps(rows, ensure_ascii=False, indent=1))
+            write_new(out / folder / "question.json", json.dumps(rows, ensure_ascii=False, indent=1).encode())
     return {**{k.lower(): len(v) for k, v in items.items()}, "prompts_without_format_sentence": no_instruction}
+
+
+def check_export(out: Path, raws: Iterable[RawSample]) -> list[str]:
+    """Every item's image is its QA pair's stored view, pixel for pixel, and its mask a non-empty 8-bit
+    single-channel PNG of the image's size; ids count from 0; nothing else lies in image/ or mask/."""
+    import cv2
+
+    out = Path(out)
+    rows: dict[str, tuple[str, dict]] = {}
+    problems: list[str] = []
+    for folder in TASKS_FOLDERS:
+        q = out / folder / "question.json"
+        if not q.is_file():
+            continue
+        try:
+            items = json.loads(q.read_text(encoding="utf-8"))
+            named = {(r["rgb_path"], r["mask_path"]) for r in items}
+            ids = [r["id"] for r in items]
+            rows.update({r["qa_id"]: (folder, r) for r in items})
+        except (ValueError, KeyError, TypeError) as e:
+            problems.append(f"{q}: not a benchmark question list ({e})")
+            continue
+        if ids != list(range(len(items))):
+            problems.append(f"{q}: ids are not 0..{len(items) - 1}")
+        files = {f"{sub}/{p.name}" for sub in ("image", "mask") for p in (out / folder / sub).iterdir()}
+        if files != {p for pair in named for p in pair}:
+            problems.append(f"{out / folder}: image/mask files do not match question.json")
+    for raw in raws:
+        frame_ids = list(raw.header["frame_ids"])
+        for qa in raw.qa_json():
+            if qa["qa_id"] not in rows:
+                continue
+            folder, r = rows.pop(qa["qa_id"])
+            where = f"{out / folder / 'question.json'}: item {r['id']}"
+            img = cv2.imread(str(out / folder / r["rgb_path"]), cv2.IMREAD_UNCHANGED)
+            mask = cv2.imread(str(out / folder / r["mask_path"]), cv2.IMREAD_UNCHANGED)
+            rgb = raw.rgb(frame_ids.index(qa["frame_ids"][0]))
+            if img is None or img.shape != rgb.shape or not np.array_equal(img[..., ::-1], rgb):
+                problems.append(f"{where}: image is not the stored view of {qa['qa_id']}")
+            elif mask is None or mask.dtype != np.uint8 or mask.shape != rgb.shape[:2] or not mask.any():
+                problems.append(f"{where}: mask is not a non-empty 8-bit single-channel image of the image's size")
+    problems += [f"{out / f}: item {r['id']} names QA pair {q!r}, which is not in the shards" for q, (f, r) in rows.items()]
+    return problems

@@ -15,6 +15,9 @@ Each line:
                 the target mask / free-space region mask as RLE>} (verl's layout; the TRL adapters read it too)
   extra_info    {"qa_id", "split", "family"}
 Only the requested splits are written (default: train; a dataset whose index has no splits is written whole).
+Image names come from export_files.StemRegistry (two ids that look alike once made file-safe still get
+two files) and every file is created once (write_new); `check_export` compares every line's images with
+the shards, and `shards.export` writes the whole folder atomically.
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ from typing import Iterable
 
 from refspatial_gen.rewards.gold import build_gold, gold_text
 from refspatial_gen.run.splits import keep_sample, sample_split, splits_of_samples
-from refspatial_gen.shards.export_refspatial import _EXT, safe_name
+from refspatial_gen.shards.export_files import EXT, StemRegistry, check_image_refs, stored_image_hashes, view_name, write_new
 from refspatial_gen.shards.format import RawSample
 
 REASONING_INSTRUCTION = ("Output the thinking process in <think> </think> and the final answer in "
@@ -72,20 +75,20 @@ def export_rft(raws: Iterable[RawSample], out: Path | str, *, splits: Iterable[s
     n = m = 0
     by_split: dict[str, int] = {}
     by_family: dict[str, int] = {}
-    with open(out / "rft.jsonl", "w", encoding="utf-8") as f:
+    stems = StemRegistry()
+    with open(out / "rft.jsonl", "x", encoding="utf-8") as f:
         for raw in raws:
             h = raw.header
             views = int(h["views"])
             split = sample_split(scene_map, [raw.frame_meta(v) for v in range(views)], h["sample_id"])
             if not keep_sample(split, wanted):
                 continue
-            base = safe_name(h["sample_id"])
+            base = stems.claim(h["sample_id"])
             names = []
             for v in range(views):
                 data, fmt = raw.image_bytes(v)
-                names.append(f"{base}_v{v}.{_EXT.get(fmt, fmt)}")
-                if not (out / "image" / names[-1]).exists():
-                    (out / "image" / names[-1]).write_bytes(data)
+                names.append(view_name(base, v, EXT.get(fmt, fmt)))
+                write_new(out / "image" / names[-1], data)
             for line in rft_lines(raw, names, split):
                 f.write(json.dumps(line, ensure_ascii=False, sort_keys=True) + "\n")
                 n += 1
@@ -94,3 +97,32 @@ def export_rft(raws: Iterable[RawSample], out: Path | str, *, splits: Iterable[s
             m += 1
     return {"qa_pairs": n, "samples": m, "by_split": dict(sorted(by_split.items())),
             "by_family": dict(sorted(by_family.items()))}
+
+
+def check_export(out: Path, raws: Iterable[RawSample]) -> list[str]:
+    """Every line parses, belongs to a sample of the shards and names images holding exactly the bytes
+    the shards store for that sample's views; no QA id appears twice."""
+    out = Path(out)
+    stored = stored_image_hashes(raws)
+    samples = {who[0] for _, who in stored.values()}
+    refs: list[str] = []
+    problems: list[str] = []
+    seen: set[str] = set()
+    path = out / "rft.jsonl"
+    for i, text in enumerate(path.read_text(encoding="utf-8").splitlines()):
+        try:
+            line = json.loads(text)
+            qid, sid, images = line["id"], line["sample_id"], list(line["images"])
+        except (ValueError, KeyError, TypeError) as e:
+            problems.append(f"{path}:{i + 1}: not an RFT line ({e})")
+            continue
+        if qid in seen:
+            problems.append(f"{path}:{i + 1}: QA id {qid!r} appears twice")
+        seen.add(qid)
+        if sid not in samples:
+            problems.append(f"{path}:{i + 1}: sample {sid!r} is not in the shards")
+        for name in images:
+            if stored.get(name, ("", (None, 0)))[1][0] != sid:
+                problems.append(f"{path}:{i + 1}: image {name} is not a view of sample {sid!r}")
+        refs += images
+    return problems + check_image_refs(out / "image", refs, stored, str(path))

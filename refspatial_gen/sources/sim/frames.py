@@ -82,7 +82,8 @@ def make_frames(unit_key: str, desc: SceneDesc, sim: SimModel, cams: list[Camera
                 bbox2d=(float(cols[0]), float(rows[0]), float(cols[-1] + 1), float(rows[-1] + 1)),
                 visible_fraction=round(vis, 4), attributes={"color": o.color, "material": o.material},
                 front=front, front_phrase=phrase,
-                provenance={"source": "sim", "asset": o.category.name, "support": supports[k], "pixels": n}))
+                provenance={"source": "sim", "asset": o.category.name, "support": supports[k], "pixels": n,
+                            **({"finish": dict(o.finish)} if o.finish else {})}))
         visible = {ob.id for ob in objects}
         surfaces = []
         for s in desc.surfaces:

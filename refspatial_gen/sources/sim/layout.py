@@ -68,6 +68,7 @@ class PlacedObject:
     support: str  # surface id, "on:<key>" or "in:<key>"
     footprint: Any = None
     top_fps: list = field(default_factory=list)  # footprints of things stacked on it
+    finish: dict[str, float] | None = None  # specular/shininess/reflectance drawn for this instance (finish.py)
 
 
 @dataclass

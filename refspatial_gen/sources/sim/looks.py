@@ -86,7 +86,8 @@ def floor_look(ap: dict[str, Any]) -> Look:
 def part_look(o, part, colors: dict, materials: dict) -> Look:
     """An object's part: its texture or authored colour if it has one, else the instance colour by role."""
     mp = materials[o.material]
-    params = {"specular": mp.get("specular", 0.3), "shininess": mp.get("shininess", 0.3), "reflectance": mp.get("reflectance", 0.0)}
+    fin = getattr(o, "finish", None) or {}  # the instance's drawn finish, else the material's nominal values
+    params = {k: float(fin.get(k, mp.get(k, d))) for k, d in (("specular", 0.3), ("shininess", 0.3), ("reflectance", 0.0))}
     if part.texture_img is not None:
         return Look((1.0, 1.0, 1.0, 1.0), texture=part.texture_img, texture_key=part.texture or f"img{id(part.texture_img)}", **params)
     if part.rgba is not None:

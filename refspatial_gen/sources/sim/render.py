@@ -123,5 +123,8 @@ class MujocoRenderer:
 
     name = "mujoco"
 
+    def __init__(self, config: dict | None = None) -> None:
+        pass  # nothing to set: resolution and lights are in the compiled model
+
     def render(self, scene, cams: list[Camera]) -> list[RenderOut]:
         return render_views(scene.sim, cams)

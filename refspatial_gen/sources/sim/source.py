@@ -69,6 +69,7 @@ CONFIG_FIELDS: dict[str, Field] = {
     "room_eye_height": Field(list, default=[1.2, 1.8], check=_range(0.3, 3, "metres"), doc="room eye above the floor"),
     "view_spread_deg": Field(float, default=70.0, min=0, max=180, doc="azimuth step between views"),
     "renderer": Field(str, default="mujoco", check=_renderer_ok, doc="renderer by name (see sources/sim/renderers.py)"),
+    "blender": Field(dict, default={}, doc="Blender renderer settings (sources/sim/blender_render.py SETTINGS)"),
     "lights": Field(list, default=[1, 3], check=_range(1, 8, "lights", True), doc="number of lights"),
     "light_intensity": Field(list, default=[0.6, 1.4], check=_range(0.0, 10.0, "x"), doc="per-light intensity multiplier"),
     "shadows": Field(bool, default=True, doc="the key light casts shadows"),
@@ -139,9 +140,23 @@ def check_config(cfg: dict[str, Any], file: str, lines: dict, path: tuple, error
         errors.append(RecipeError(file, line_of(lines, path + ("external_prob",)),
                                   f"external_prob is {ep} but the catalog {cat.path} has no external meshes "
                                   "(import some with `refspatial-gen assets import DIR --out my_catalog.yaml`)"))
+    _check_blender(cfg, file, lines, path, errors)
     lo, hi = cfg.get("min_objects", 3), cfg.get("max_objects", 24)
     if lo > hi:
         errors.append(RecipeError(file, line_of(lines, path + ("min_objects",)), f"min_objects {lo} > max_objects {hi}"))
+
+
+def _check_blender(cfg: dict[str, Any], file: str, lines: dict, path: tuple, errors: list[RecipeError]) -> None:
+    """The `blender:` section's keys, and (for `renderer: blender`) that the Blender environment exists."""
+    from refspatial_gen.schema import check_section
+    from refspatial_gen.sources.sim.blender_render import SETTINGS, missing_reason, settings
+
+    n = len(errors)
+    check_section(cfg.get("blender"), SETTINGS, file, lines, path + ("blender",), errors)
+    if cfg.get("renderer") == "blender" and len(errors) == n:
+        why = missing_reason(settings(cfg))
+        if why:
+            errors.append(RecipeError(file, line_of(lines, path + ("renderer",)), f"renderer blender: {why}"))
 
 
 def _focus_target(desc, boxes) -> tuple[np.ndarray, float]:
@@ -171,6 +186,7 @@ def generate(unit_key: str, rng: np.random.Generator, config: dict[str, Any], ti
     from refspatial_gen.core.geometry import Box3D
     from refspatial_gen.sources.sim.cameras import sample_cameras
     from refspatial_gen.sources.sim.frames import make_frames, scene_boxes
+    from refspatial_gen.sources.sim.finish import draw_finishes
     from refspatial_gen.sources.sim.lighting import sample_lights
     from refspatial_gen.sources.sim.physics import build_model, settle
     from refspatial_gen.sources.sim.renderers import get_renderer
@@ -191,6 +207,7 @@ def generate(unit_key: str, rng: np.random.Generator, config: dict[str, Any], ti
     if not desc.objects:
         raise DropUnit("layout_empty", f"{kind}: no object could be placed")
     desc.lights = sample_lights(rng, cfg, np.mean([o.pos for o in desc.objects], axis=0), desc.room_half)
+    draw_finishes(desc.objects, catalog.material_ranges, rng)
     sim = build_model(desc, catalog.materials, cfg, int(cfg["views"]))
     t1 = time.perf_counter()
     info = settle(sim, cfg)
@@ -205,10 +222,12 @@ def generate(unit_key: str, rng: np.random.Generator, config: dict[str, Any], ti
                           np.array([b.center for b, _ in boxes]))
     if not cams:
         raise DropUnit("no_camera_pose", "every sampled camera was inside an object")
-    renders = get_renderer(cfg["renderer"]).render(SettledScene(desc, sim, catalog.colors, catalog.materials), cams)
+    renders = get_renderer(cfg["renderer"], cfg).render(SettledScene(desc, sim, catalog.colors, catalog.materials), cams)
     t3 = time.perf_counter()
     meta = {"layout": kind, "settle_steps": int(info["steps"]), "n_objects": len(desc.objects)}
     frames = make_frames(unit_key, desc, sim, cams, renders, boxes, meta)
+    for f, r in zip(frames, renders):  # a renderer's per-view notes (Blender: its agreement with MuJoCo)
+        f.meta.update(getattr(r, "meta", None) or {})
     frames = [f for f in frames if len(f.objects) >= int(cfg["min_visible_objects"])]
     t4 = time.perf_counter()
     if not frames:
