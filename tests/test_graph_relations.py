@@ -154,8 +154,33 @@ def test_rotation_vertical():
         cam=level,
     )
     f = check(fr, g, "rotation_vertical", (1,), True)
-    assert abs(f.value - np.arctan2(TOP + 0.05 - 1.0, 1.5)) < 1e-6 and f.value < 0
+    assert abs(f.value - np.arctan2(TOP + 0.05 - 1.0, np.hypot(0.2, 1.5))) < 1e-6 and f.value < 0
     check(fr, g, "rotation_vertical", (2,), None)
+
+
+def test_rotation_vertical_is_view_relative():
+    """A camera pitched down 45 degrees at an object on its optical axis needs no tilt (the question asks
+    for a tilt from the current view; the old code measured from a level camera and said 45 degrees down);
+    an object above the view centre needs a tilt up, one below a tilt down, and verify agrees."""
+    from refspatial_gen.graph import build_graph
+    from refspatial_gen.qa.verify_world import World, recompute_quantity
+
+    c = TOP + 0.05
+    pitched = camera(eye=(0.0, -0.6, c + 0.6), target=(0.0, 0.0, c))
+    fr, g = scene(
+        ("box", "red", box(0.0, 0.0)),
+        ("box", "blue", box(-0.25, 0.45, (0.08, 0.08, 0.10))),
+        ("box", "green", box(0.2, -0.25, (0.08, 0.08, 0.10))),
+        cam=pitched,
+    )
+    f = check(fr, g, "rotation_vertical", (1,), None)
+    assert abs(f.value) < np.deg2rad(0.5)
+    up = check(fr, g, "rotation_vertical", (2,), True)  # farther back: higher in the view
+    down = check(fr, g, "rotation_vertical", (3,), True)  # nearer: lower in the view
+    assert up.value > 0 > down.value
+    world = World(fr, build_graph(fr))
+    for oid, fact in ((1, f), (2, up), (3, down)):
+        assert abs(recompute_quantity(world, "rotation_vertical", oid, None) - fact.value) < 1e-6
 
 
 @pytest.mark.parametrize("a_xy, expected", [((0.0, 0.0), True), ((0.45, 0.0), False), ((0.0, 0.25), None)])

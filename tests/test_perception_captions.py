@@ -31,13 +31,15 @@ def test_hierarchical_coarse_to_fine():
 
 
 def test_colour_words_come_from_the_graph_namer(toy_frame):
-    from refspatial_gen.graph.colour import colour_word, mask_hsv_from_rgb
+    from refspatial_gen.graph.colour import colour_word, image_white, mask_pixels
 
+    white = image_white(toy_frame.rgb)
     for o in toy_frame.objects:
         m = o.mask.decode()
         ys, xs = np.nonzero(m)
         crop = (slice(ys.min(), ys.max() + 1), slice(xs.min(), xs.max() + 1))
-        assert colour_of(toy_frame.rgb, m) == colour_word(mask_hsv_from_rgb(toy_frame.rgb[crop], m[crop]))[0]
+        px = mask_pixels(toy_frame.rgb[crop], m[crop])
+        assert colour_of(toy_frame.rgb, m) == colour_word(px, white=white)[0]
     red = np.zeros((40, 40, 3), np.uint8)
     red[..., 0] = 210
     assert colour_of(red, np.ones((40, 40), bool)) == "red"

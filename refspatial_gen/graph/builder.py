@@ -158,6 +158,11 @@ def graph_from_geometry(geom: SceneGeom, free_space: bool = True, floor: Floor |
         "image_size": [geom.W, geom.H],
         "truth_floor": geom.cache["floor"].to_json(),
     }
-    if geom.cache["truth"]:
-        meta["truth"] = dict(sorted(geom.cache["truth"].items()))
+    truth = dict(geom.cache["truth"])
+    withheld = {"margin": "colour_unnamed_margin", "person_or_animal": "colour_withheld_person_or_animal"}
+    for how in geom.colour_how:  # objects the colour namer left unnamed (run/stats.py truth_counts)
+        if how in withheld:
+            truth[withheld[how]] = truth.get(withheld[how], 0) + 1
+    if truth:
+        meta["truth"] = dict(sorted(truth.items()))
     return SceneGraph(geom.frame.frame_id, nodes, facts, regions, meta)

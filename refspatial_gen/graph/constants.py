@@ -60,6 +60,10 @@ class Thresholds:
     edge_width: float  # m, width of an edge free region
     # phrases
     anchor_distance_margin: float  # m, "closest to the X" must win by this
+    # colour words (graph/colour.py): the winning term's share of the lit pixels, and its lead over the
+    # runner-up; below either the object gets no colour word (counted as colour_unnamed_margin)
+    colour_min_share: float = 0.5
+    colour_margin: float = 0.2
 
     def to_json(self) -> dict[str, float]:
         return {k: round(float(v), 6) for k, v in sorted(asdict(self).items())}

@@ -67,21 +67,28 @@ def _tolerances(th: dict[str, Any]) -> dict[str, float]:
 
 def _from_frame(frame: Frame) -> _Scene:
     from refspatial_gen.graph.builder import decide_scale
-    from refspatial_gen.graph.colour import colour_word, hsv_image, mask_hsv
+    from refspatial_gen.graph.colour import colour_word, image_white, mask_pixels
     from refspatial_gen.graph.constants import thresholds_for
     from refspatial_gen.graph.gravity import resolve_gravity
 
     th = thresholds_for(decide_scale(frame), frame.source).to_json()
     G = resolve_gravity(frame).rotation
     cam = frame.camera
-    hsv = hsv_image(frame.rgb)
     boxes = [Box3D(G @ o.box.center, o.box.size, G @ o.box.rotation) for o in frame.objects]
     img_x, near, cols = [], [], []
+    white = image_white(frame.rgb)
     for o in frame.objects:
         m = o.mask.decode() if o.mask is not None else None
         if m is not None and m.any():
             img_x.append((np.nonzero(m)[1].mean() + 0.5) / cam.width)
-            cols.append(colour_word(mask_hsv(hsv, m), o.attributes.get("color"))[0])
+            ys, xs = np.nonzero(m)  # the mask's bounding box, as the scene graph crops it
+            crop = (slice(ys.min(), ys.max() + 1), slice(xs.min(), xs.max() + 1))
+            px = mask_pixels(frame.rgb[crop], m[crop])
+            cols.append(
+                colour_word(
+                    px, o.attributes.get("color"), o.category, th["colour_min_share"], th["colour_margin"], white
+                )[0]
+            )
         else:
             uv, _ = cam.project(o.box.center[None])
             img_x.append((uv[0, 0] + 0.5) / cam.width)

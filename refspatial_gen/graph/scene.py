@@ -18,7 +18,7 @@ import numpy as np
 from refspatial_gen.core.geometry import Box3D, box_distance
 from refspatial_gen.core.mask import answer_pixel, denormalise_point, normalise_point
 from refspatial_gen.core.model import Frame, SupportSurface
-from refspatial_gen.graph.colour import colour_word, mask_hsv_from_rgb
+from refspatial_gen.graph.colour import colour_word, image_white, mask_pixels
 from refspatial_gen.graph.constants import Thresholds
 from refspatial_gen.graph.gravity import Gravity
 
@@ -156,6 +156,7 @@ class SceneGeom:
         self.mask_depth = np.full(n, np.nan)
         self.mask_depth_spread = np.full(n, np.nan)
         depth = self.frame.depth
+        white = image_white(rgb) if self.frame.objects else 1.0
         for i, o in enumerate(self.frame.objects):
             if o.mask is None or o.mask.area == 0:
                 continue
@@ -168,7 +169,12 @@ class SceneGeom:
             self.img_centroid[i] = ((xs.mean() + x0 + 0.5) / W, (ys.mean() + y0 + 0.5) / H)
             self.points[i] = valid_point(m, x0, y0, W, H)
             self.colours[i], self.colour_how[i] = colour_word(
-                mask_hsv_from_rgb(rgb[y0:y1, x0:x1], m), o.attributes.get("color")
+                mask_pixels(rgb[y0:y1, x0:x1], m),
+                o.attributes.get("color"),
+                o.category,
+                self.th.colour_min_share,
+                self.th.colour_margin,
+                white,
             )
             ys, xs = ys + y0, xs + x0
             d = depth[ys, xs]

@@ -27,16 +27,17 @@ ORDER_MARGIN_PX = 0.02  # of the image width, between neighbours left to right
 ORDER_MARGIN_M = 0.10  # metres, between neighbours near to far
 
 
-def colour_of(rgb: np.ndarray, mask: np.ndarray) -> str | None:
+def colour_of(rgb: np.ndarray, mask: np.ndarray, category: str | None = None) -> str | None:
     """The colour word of the pixels under `mask` (None when inconclusive): the graph's own namer, on the
     mask's bounding box as the scene graph crops it (the namer's edge erosion depends on the crop)."""
-    from refspatial_gen.graph.colour import colour_word, mask_hsv_from_rgb
+    from refspatial_gen.graph.colour import colour_word, image_white, mask_pixels
 
     rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
     if len(rows) == 0:
         return None
     y0, y1, x0, x1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
-    return colour_word(mask_hsv_from_rgb(rgb[y0:y1, x0:x1], mask[y0:y1, x0:x1]))[0]
+    px = mask_pixels(rgb[y0:y1, x0:x1], mask[y0:y1, x0:x1])
+    return colour_word(px, category=category, white=image_white(rgb))[0]  # the graph's white level
 
 
 def _separated(values: list[float], margin: float) -> bool:
@@ -119,7 +120,7 @@ def caption_frame(frame, P, content: str) -> None:
     for o, m, oc in zip(objs, masks, ords):
         caps = P.cfg["captions"]
         if caps["colour"]:
-            word = colour_of(frame.rgb, m)
+            word = colour_of(frame.rgb, m, o.category)
             if word:
                 o.attributes["color"] = word
         if caps.get("material"):

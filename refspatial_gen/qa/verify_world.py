@@ -121,12 +121,8 @@ def recompute_quantity(world: World, q: str, a: int, b: int | None) -> float:
     pc = cam.world_to_cam(oa.box.center)[0]
     if q == "rotation_horizontal":
         return float(math.atan2(pc[0], pc[2]))
-    if q == "rotation_vertical":
-        fwd = cam.world_from_cam[:3, 2].copy()
-        fwd[2] = 0.0
-        fwd /= np.linalg.norm(fwd)
-        d = oa.box.center - cam.position
-        return float(math.atan2(d[2], d @ fwd))
+    if q == "rotation_vertical":  # view-relative tilt after the horizontal turn (camera y points down)
+        return float(math.atan2(-pc[1], math.hypot(pc[0], pc[2])))
     raise Fail(f"unknown quantity {q!r}")
 
 

@@ -21,7 +21,6 @@ from refspatial_gen.graph.scene import SceneGeom, roll_next
 if TYPE_CHECKING:
     from refspatial_gen.graph.tables import RelationTables
 
-UP = np.array([0.0, 0.0, 1.0])
 MAX_FRONT_Z = 0.7
 SECTORS = ("obj_front", "obj_left", "obj_behind", "obj_right")  # centred on 0, 90, 180, -90 degrees
 
@@ -46,18 +45,20 @@ def _rotation_h(geom: SceneGeom, i: int) -> RelationFact:
     return RelationFact("rotation_horizontal", (int(geom.ids[i]),), True if abs(v) > m and z > 0 else None, v, m)
 
 
+def view_tilt(cam_point: Any) -> float:
+    """Tilt (rad, + = up) the camera must make about its own right axis, after its horizontal turn
+    (`atan2(x, z)`), to put a camera-frame point on its optical axis: the point's elevation above the
+    plane of the camera's optical and right axes. View-relative: 0 for a point on the optical axis
+    however the camera is pitched (OpenCV camera frame, y down)."""
+    x, y, z = (float(c) for c in cam_point)
+    return float(np.arctan2(-y, np.hypot(x, z)))
+
+
 def _rotation_v(geom: SceneGeom, i: int) -> RelationFact:
-    """Pitch in a gravity-levelled camera: elevation of the object's direction over the camera's
-    horizontal forward axis. Undecided without gravity or when the camera looks straight down."""
+    """The tilt from the current view (`view_tilt`); undecided inside the margin or behind the camera."""
     m = geom.th.rotation_margin
-    axes = geom.camera_axes_horizontal() if geom.world_ok else None
-    if axes is None:
-        _, y, z = geom.cam_centers[i]
-        return RelationFact("rotation_vertical", (int(geom.ids[i]),), None, float(np.arctan2(-y, z)), m)
-    _, fwd = axes
-    d = geom.centers[i] - geom.cam_pos_g
-    v = float(np.arctan2(d @ UP, d @ fwd))
-    ok = abs(v) > m and (d @ fwd) > 0
+    v = view_tilt(geom.cam_centers[i])
+    ok = abs(v) > m and geom.cam_centers[i][2] > 0
     return RelationFact("rotation_vertical", (int(geom.ids[i]),), True if ok else None, v, m)
 
 
@@ -269,12 +270,10 @@ register(
         "orientation",
         "cam",
         1,
-        "elevation of A's centre over the levelled camera's forward axis (rad, + = up)",
+        "tilt of the camera from its current view, after its horizontal turn, to face A's centre (rad, + = up)",
         "rotation_margin",
-        "angle the camera must pitch (in a gravity-levelled camera) to face the object",
+        "angle the camera must tilt about its own right axis to face the object (view-relative)",
         storage="unary",
-        needs=("gravity",),
-        world_only=False,
         evaluate=_unary_eval(_rotation_v),
         stored=_rotation_stored(_rotation_v),
         cell=stored_cell("rotation_vertical"),
