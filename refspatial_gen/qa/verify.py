@@ -1,11 +1,10 @@
 """Independent re-check of stored QA pairs (`refspatial-gen verify DIR`, `verify_sample`).
 
-Why a second code path: a check that shares the generator's code shares its bugs. The verifier reads
-only what a shard stores (frames, scene graphs, QA pairs with their executed programs) and re-derives
-every answer on its own: relations are re-evaluated on the frame's raw geometry through the relation
-registry's `evaluate` (not the stored facts or the generator's index), phrases are re-resolved by the
-graph's independent resolver, points are tested against decoded masks, free points against the
-surface and depth map, and numbers are recomputed from the stored 3D boxes with core.geometry.
+Why a second code path: a check that shares the generator's code shares its bugs. The verifier reads only
+what a shard stores and re-derives every answer on its own: relations re-evaluated on the frame's geometry
+through the relation registry's `evaluate` (not the stored facts or the generator's index), phrases by the
+graph's independent resolver, points against decoded masks, free points against the surface and depth
+map, numbers from the stored 3D boxes; visibility and size truth in verify_truth.py.
 """
 
 from __future__ import annotations
