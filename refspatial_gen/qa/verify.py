@@ -29,7 +29,6 @@ KEY_TOL = 1.5e-3  # key-step values are rounded to 3 decimals
 
 def _steps_of(program: list[dict[str, Any]]) -> int:
     """The step count the record's own program gives (each op's formats.md rule over the stored arguments)."""
-
     n = 0
     for st in program:
         op, a = st.get("op"), st.get("args") or {}
