@@ -117,7 +117,7 @@ def test_unreliable_metric_scale_withholds_every_metric_question(tiny_leftmost, 
 
 def test_verify_fails_a_pair_naming_a_below_floor_object(tiny_leftmost, cfg):
     f, g = tiny_leftmost
-    qas, _ = _many(f, g, cfg, n=4)
+    qas, _ = _many(f, g, cfg)
     q = copy.deepcopy(next(q for q in qas if q.template == "locate/by_phrase"))
     q.program[0]["args"]["of"]["object"] = 1
     q.program[0]["out"]["object"] = 1
