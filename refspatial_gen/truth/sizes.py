@@ -195,14 +195,18 @@ def _bearing() -> _Bearing:
 def object_class(category: str, size: Sequence[float] | None = None) -> str | None:
     """What `category` is for bearing: a group (person, animal_small, ...) or a size class (small,
     medium, large) from the object's own largest extent when `size` is given (clipped into the
-    category's range), else from the top of its range; None when unranged and in no group."""
+    category's range), else from the top of its range; an unranged category outside every group is classed by
+    its own `size` when given, else None."""
     b = _bearing()
     key = canonical(category)
     if key in b.groups:
         return b.groups[key]
     r = size_range(key)
     if r is None:
-        return None
+        if size is None:
+            return None
+        hi = max(float(v) for v in size)  # unranged: the object's own measured size is all there is
+        return "small" if hi <= b.small else "medium" if hi <= b.medium else "large"
     hi = r.extent[1] if size is None else min(max(max(float(v) for v in size), r.extent[0]), r.extent[1])
     return "small" if hi <= b.small else "medium" if hi <= b.medium else "large"
 
