@@ -20,13 +20,16 @@ from refspatial_gen.core.geometry import box_distance
 if TYPE_CHECKING:
     from refspatial_gen.qa.verify_world import World
 
-TOL = 2e-3  # share of |BC|: rounding of the stored graph (centres to 0.01 mm, image centroids to 1e-4)
+# share of |BC|: the generator may decide on the stored graph's rounded attributes (centres to 0.01 mm, image
+# centroids to 1e-4); within this of a limit the verifier accepts either side's decision rather than call
+# a decided instance undecided. The bands (0.10, 0.15) are far wider, so True and False never meet.
+TOL = 2e-3
 MIN_SPAN_M = 0.05  # the generator's MIN_BETWEEN_SPAN
 MIN_SPAN_PX = 8.0  # the generator's MIN_BETWEEN_PX
 
 
 def _plane(p: np.ndarray, b: np.ndarray, c: np.ndarray, th: Any, min_span: float) -> bool | None:
-    """True on the segment, False clearly off it, None in the bands between (or within TOL of a limit)."""
+    """True on the segment, False clearly off it, None in the bands between (each side widened by TOL)."""
     bx, by = float(c[0] - b[0]), float(c[1] - b[1])
     span = math.hypot(bx, by)
     if span < min_span:
@@ -35,10 +38,10 @@ def _plane(p: np.ndarray, b: np.ndarray, c: np.ndarray, th: Any, min_span: float
     t = (px * bx + py * by) / (span * span)
     off = abs(px * by - py * bx) / (span * span)
     m, cor = th.between_t_margin, th.between_corridor
-    if m + TOL < t < 1 - m - TOL and off < cor - TOL:
+    if m - TOL < t < 1 - m + TOL and off < cor + TOL:
         return True
     lo, hi, wide = m - th.between_t_band, 1 - m + th.between_t_band, cor + th.between_corridor_band
-    if t < lo - TOL or t > hi + TOL or off > wide + TOL:
+    if t < lo + TOL or t > hi - TOL or off > wide - TOL:
         return False
     return None
 
