@@ -43,6 +43,7 @@ def make_sample(recipe: Recipe, unit: Unit, timer: StageTimer, out_dir: str | No
             f.validate()
         except ValueError as e:
             raise DropUnit("invalid_frame", f"{f.frame_id}: {e}") from e
+    frames = [f.as_stored() for f in frames]  # graphs and QA on the numbers the shard keeps (verify reads them)
     t = timer.add("load", t)
     graphs = [build_graph(f, recipe.graph) for f in frames]
     t = timer.add("graph", t)
