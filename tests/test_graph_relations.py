@@ -32,6 +32,25 @@ def test_front_behind(ya, yb, front):
     check(fr, g, "behind", (2, 1), front)
 
 
+def test_left_right_undecided_when_extents_overlap():
+    """A box on the right half of a wide tray's x-range (in front of it) is not "right of the tray": the two
+    camera-x extents overlap. Disjoint extents stay decided."""
+    tray = box(0.0, 0.15, (0.50, 0.12, 0.03))
+    fr, g = scene(("tray", "red", tray), ("box", "blue", box(0.16, -0.2, (0.05, 0.05, 0.06))))
+    check(fr, g, "left", (1, 2), None)
+    check(fr, g, "right", (2, 1), None)
+    fr, g = scene(("tray", "red", tray), ("box", "blue", box(0.32, -0.2, (0.05, 0.05, 0.06))))
+    check(fr, g, "right", (2, 1), True)
+
+
+def test_front_behind_undecided_when_depth_extents_overlap():
+    """A deep box whose nearest face is 15 cm nearer but whose depth range overlaps the other's is not "in
+    front of" it (nearest faces alone said it was)."""
+    fr, g = scene(("box", "red", box(-0.15, 0.0, (0.08, 0.20, 0.06))), ("box", "blue", box(0.15, 0.08, (0.08, 0.05, 0.06))))
+    check(fr, g, "front", (1, 2), None)
+    check(fr, g, "behind", (2, 1), None)
+
+
 # ------------------------------------------------------------------ above / below (image)
 @pytest.mark.parametrize("ya, yb, above", [(0.3, -0.2, True), (-0.2, 0.3, False), (0.0, 0.0, None)])
 def test_above_below_image(ya, yb, above):
@@ -54,6 +73,19 @@ def test_above_below_world():
     )
     check(fr, g, "above_world", (1, 2), None)
     check(fr, g, "below_world", (1, 2), None)
+
+
+def test_above_world_undecided_side_by_side():
+    """Standing side by side, a tall box is not "above" a short one, however far apart their centres; two
+    thin boxes (thinner than the stack tolerance) side by side at one level are not a stack either way (the
+    sign of a 1e-7 m centre difference decided it)."""
+    fr, g = scene(("box", "red", box(-0.15, 0.0, (0.08, 0.08, 0.30))), ("box", "blue", box(0.15, 0.0, (0.08, 0.08, 0.05))))
+    check(fr, g, "above_world", (1, 2), None)
+    check(fr, g, "below_world", (2, 1), None)
+    flat = (0.10, 0.06, 0.008)
+    fr, g = scene(("book", "red", box(-0.15, 0.0, flat, z0=TOP + 1e-7)), ("book", "blue", box(0.15, 0.0, flat)))
+    check(fr, g, "above_world", (1, 2), None)
+    check(fr, g, "below_world", (2, 1), None)
 
 
 # ------------------------------------------------------------------ sizes
