@@ -25,7 +25,8 @@ from refspatial_gen.sources.toy import TABLE, toy_frame
 POINTS = re.compile(r"^\[\(\d\.\d{3}, \d\.\d{3}\)\]$")
 CHOICE = re.compile(r"^\([A-H]\)( .+)?$")
 TRACE = re.compile(
-    r"^<think>(\[(Position|Orientation|Size)\] \[[^\]]+\]: \([-0-9., ]+\)\n?)+</think><answer>.+</answer>$"
+    r"^<think>(\[(Position|Orientation|Size)\] \[[^\]]+\]: (\([-0-9., ]+\)|\d+\.\d{3} m)\n?)+"
+    r"</think><answer>.+</answer>$"
 )
 
 
@@ -68,7 +69,7 @@ def test_every_qa_pair_is_well_formed(generated):
                 assert CHOICE.match(q.answer), q.answer
                 assert "(A)" in q.question and "(B)" in q.question
             else:
-                assert kind == "number" and re.search(r"(centimeters?|meters|degrees)$", q.answer)
+                assert kind == "number" and re.search(r"(centimeters?|meters?|feet|foot|inch(es)?|degrees)$", q.answer)
             if q.steps >= 2:
                 assert TRACE.match(q.trace), q.trace
                 assert q.trace.endswith(f"<answer>{q.answer}</answer>")

@@ -54,8 +54,10 @@ def decompose(mesh: trimesh.Trimesh, cache: Path) -> tuple[str, Path | None]:
     try:
         import coacd
     except ImportError as e:
-        raise ValueError("convex decomposition needs CoACD: pip install 'refspatial-gen[assets]' "
-                         "(or `make assets-shared`), or import with --collision hull") from e
+        raise ValueError(
+            "convex decomposition needs CoACD: pip install 'refspatial-gen[assets]' "
+            "(or `make assets-shared`), or import with --collision hull"
+        ) from e
 
     coacd.set_log_level("error")
     parts = coacd.run_coacd(coacd.Mesh(np.asarray(mesh.vertices, float), np.asarray(mesh.faces, int)), **PARAMS)

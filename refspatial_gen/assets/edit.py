@@ -35,11 +35,13 @@ def set_front(cat: Catalog, name: str, direction: str, phrase: str) -> tuple[str
     if v is None:
         raise ValueError(f"direction {direction!r}: use +x, -x, +y, -y, +z, -z or 'x,y,z'")
     if not phrase.strip():
-        raise ValueError("the front needs a phrase, e.g. \"the handle side\"")
+        raise ValueError('the front needs a phrase, e.g. "the handle side"')
     file, line = c.origin
     if Path(file).resolve() != Path(cat.path).resolve() and Path(file).resolve() == DEFAULT_CATALOG.resolve():
-        raise ValueError(f"{c.name!r} comes from the built-in catalog through include:; give the name of one of "
-                         f"{cat.path}'s own categories (or edit the built-in catalog with --catalog {DEFAULT_CATALOG})")
+        raise ValueError(
+            f"{c.name!r} comes from the built-in catalog through include:; give the name of one of "
+            f"{cat.path}'s own categories (or edit the built-in catalog with --catalog {DEFAULT_CATALOG})"
+        )
     lines = Path(file).read_text().splitlines(keepends=True)
     i = line - 1
     indent = len(lines[i]) - len(lines[i].lstrip())
@@ -48,7 +50,10 @@ def set_front(cat: Catalog, name: str, direction: str, phrase: str) -> tuple[str
         end += 1
     key_indent = " " * (indent + 2)
     front = [round(float(x), 4) for x in v]
-    new = {"front": f"{key_indent}front: {json.dumps(front)}\n", "front_phrase": f"{key_indent}front_phrase: {json.dumps(phrase)}\n"}
+    new = {
+        "front": f"{key_indent}front: {json.dumps(front)}\n",
+        "front_phrase": f"{key_indent}front_phrase: {json.dumps(phrase)}\n",
+    }
     for key in ("front", "front_phrase"):
         pat = re.compile(rf"^{key_indent}{key}:")
         hit = next((k for k in range(i + 1, end) if pat.match(lines[k])), None)

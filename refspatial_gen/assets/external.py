@@ -41,9 +41,14 @@ class VisualMesh:
 
 def up_rotation(up: str) -> np.ndarray:
     """Rotation taking the file's `up` axis to +z (a proper rotation, so handedness is kept)."""
-    R = {"z": np.eye(3), "-z": np.diag([1.0, -1.0, -1.0]),
-         "y": np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]]), "-y": np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]]),
-         "x": np.array([[0, 0, -1.0], [0, 1, 0], [1, 0, 0]]), "-x": np.array([[0, 0, 1.0], [0, 1, 0], [-1, 0, 0]])}
+    R = {
+        "z": np.eye(3),
+        "-z": np.diag([1.0, -1.0, -1.0]),
+        "y": np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]]),
+        "-y": np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]]),
+        "x": np.array([[0, 0, -1.0], [0, 1, 0], [1, 0, 0]]),
+        "-x": np.array([[0, 0, 1.0], [0, 1, 0], [-1, 0, 0]]),
+    }
     return R[up]
 
 
@@ -97,8 +102,11 @@ def load_visuals(path: Path) -> list[VisualMesh]:
     resolver = trimesh.resolvers.FilePathResolver(str(path), allow_anywhere=True)
     loaded = trimesh.load(str(path), process=False, maintain_order=True, resolver=resolver)
     meshes = loaded.dump(concatenate=False) if isinstance(loaded, trimesh.Scene) else [loaded]
-    out = [_look(m, f"{path}#{i}" if len(meshes) > 1 else str(path)) for i, m in enumerate(meshes)
-           if isinstance(m, trimesh.Trimesh) and len(m.faces)]
+    out = [
+        _look(m, f"{path}#{i}" if len(meshes) > 1 else str(path))
+        for i, m in enumerate(meshes)
+        if isinstance(m, trimesh.Trimesh) and len(m.faces)
+    ]
     if not out:
         raise ValueError(f"{path}: no triangle meshes")
     return out
@@ -119,8 +127,16 @@ def _external_texture(v: VisualMesh, texture: str) -> None:
 
 
 @lru_cache(maxsize=64)
-def _external_geometry(mesh: str, collision: str, texture: str, scale: float, up: str,
-                       parts: tuple[tuple[str, tuple | None], ...], rgba: tuple | None, mass: float) -> AssetGeometry:
+def _external_geometry(
+    mesh: str,
+    collision: str,
+    texture: str,
+    scale: float,
+    up: str,
+    parts: tuple[tuple[str, tuple | None], ...],
+    rgba: tuple | None,
+    mass: float,
+) -> AssetGeometry:
     if parts:
         visuals = []
         for f, col in parts:
@@ -142,8 +158,17 @@ def _external_geometry(mesh: str, collision: str, texture: str, scale: float, up
         if texture:
             _external_texture(v, texture)
         col = v.rgba if v.rgba is not None else rgba
-        out.append(Part("mesh", mesh=place(v.mesh), uv=v.uv, texture=v.texture if v.image is not None else None,
-                        texture_img=v.image, rgba=col, collide=False))
+        out.append(
+            Part(
+                "mesh",
+                mesh=place(v.mesh),
+                uv=v.uv,
+                texture=v.texture if v.image is not None else None,
+                texture_img=v.image,
+                rgba=col,
+                collide=False,
+            )
+        )
     if collision == "hull":
         hull = trimesh.Trimesh(pts + offset, process=False).convex_hull
         out.append(Part("mesh", mesh=hull, visual=False))
@@ -151,7 +176,9 @@ def _external_geometry(mesh: str, collision: str, texture: str, scale: float, up
         files = sorted(Path(collision).glob("*.stl"), key=lambda p: (len(p.name), p.name))
         if not files:
             raise FileNotFoundError(f"{collision}: no convex collision parts (*.stl)")
-        out += [Part("mesh", mesh=place(trimesh.load(str(f), force="mesh", process=False)), visual=False) for f in files]
+        out += [
+            Part("mesh", mesh=place(trimesh.load(str(f), force="mesh", process=False)), visual=False) for f in files
+        ]
     geo = AssetGeometry(out, density=DEFAULT_DENSITY)
     if mass > 0:
         vol = sum(abs(p.trimesh().convex_hull.volume) for p in out if p.collide)
@@ -169,8 +196,15 @@ def build_external(cat: Category) -> AssetGeometry:
     e = cat.external
     parts = tuple((p["mesh"], p.get("rgba")) for p in e.get("parts") or ())
     try:
-        return _external_geometry(str(e["mesh"]), str(e.get("collision", "hull")), str(e.get("texture") or ""),
-                                  float(e.get("scale", 1.0)), str(e.get("up", "z")), parts, e.get("rgba"),
-                                  float(e.get("mass", 0.0) or 0.0))
+        return _external_geometry(
+            str(e["mesh"]),
+            str(e.get("collision", "hull")),
+            str(e.get("texture") or ""),
+            float(e.get("scale", 1.0)),
+            str(e.get("up", "z")),
+            parts,
+            e.get("rgba"),
+            float(e.get("mass", 0.0) or 0.0),
+        )
     except (FileNotFoundError, ValueError, OSError) as err:
         raise DropUnit("asset_unreadable", f"{cat.name}: {err}") from err

@@ -20,16 +20,43 @@ from refspatial_gen.assets.external import load_visuals, up_rotation
 from refspatial_gen.assets.metadata import AssetRecord, scan_folder
 from refspatial_gen.assets.paths import cache_root, portable_spec
 
-AXES = {"+x": [1, 0, 0], "-x": [-1, 0, 0], "+y": [0, 1, 0], "-y": [0, -1, 0], "+z": [0, 0, 1], "-z": [0, 0, -1],
-        "x": [1, 0, 0], "y": [0, 1, 0], "z": [0, 0, 1]}
+AXES = {
+    "+x": [1, 0, 0],
+    "-x": [-1, 0, 0],
+    "+y": [0, 1, 0],
+    "-y": [0, -1, 0],
+    "+z": [0, 0, 1],
+    "-z": [0, 0, -1],
+    "x": [1, 0, 0],
+    "y": [0, 1, 0],
+    "z": [0, 0, 1],
+}
 UNIT_SCALES = (1.0, 0.01, 0.001)  # metres, centimetres, millimetres
 GENERAL_RANGE = (0.03, 1.2)  # longest side of a household object, metres
 FIXED_COLOURS = {"screen", "paper", "picture"}
 DEFAULT_COLOURS = ["white", "gray", "blue", "red", "green", "yellow", "black"]
-MATERIAL_WORDS = {"box": "cardboard", "carton": "cardboard", "can": "metal", "tin": "metal", "hammer": "metal",
-                  "bottle": "plastic", "mug": "ceramic", "cup": "ceramic", "bowl": "ceramic", "plate": "ceramic",
-                  "teapot": "ceramic", "glass": "glass", "apple": "organic", "fruit": "organic", "banana": "organic",
-                  "lemon": "organic", "bread": "organic", "book": "paper", "pillow": "fabric", "wood": "wood"}
+MATERIAL_WORDS = {
+    "box": "cardboard",
+    "carton": "cardboard",
+    "can": "metal",
+    "tin": "metal",
+    "hammer": "metal",
+    "bottle": "plastic",
+    "mug": "ceramic",
+    "cup": "ceramic",
+    "bowl": "ceramic",
+    "plate": "ceramic",
+    "teapot": "ceramic",
+    "glass": "glass",
+    "apple": "organic",
+    "fruit": "organic",
+    "banana": "organic",
+    "lemon": "organic",
+    "bread": "organic",
+    "book": "paper",
+    "pillow": "fabric",
+    "wood": "wood",
+}
 
 
 def guess_materials(label: str) -> list[str]:
@@ -42,7 +69,7 @@ def guess_materials(label: str) -> list[str]:
 
 
 def parse_axis(v: Any) -> np.ndarray | None:
-    """"+x" / "-y" / [x, y, z] -> unit vector (None if unusable)."""
+    """ "+x" / "-y" / [x, y, z] -> unit vector (None if unusable)."""
     if isinstance(v, str):
         v = AXES.get(v.strip().lower())
     try:
@@ -90,7 +117,12 @@ def colour_words(visuals, palette: dict[str, tuple]) -> list[str]:
     px = []
     for v in visuals:
         if v.image is not None:
-            im = np.asarray(v.image, float)[:: max(1, v.image.shape[0] // 64), :: max(1, v.image.shape[1] // 64)].reshape(-1, 3) / 255
+            im = (
+                np.asarray(v.image, float)[
+                    :: max(1, v.image.shape[0] // 64), :: max(1, v.image.shape[1] // 64)
+                ].reshape(-1, 3)
+                / 255
+            )
             px.append(im[im.max(axis=1) > 0.04])
         elif v.rgba is not None:
             px.append(np.tile(np.asarray(v.rgba[:3], float), (200, 1)))
@@ -105,7 +137,7 @@ def colour_words(visuals, palette: dict[str, tuple]) -> list[str]:
 
 def _entry(r: AssetRecord, out_dir: Path, cache: Path, collision: str, builtin) -> tuple[str, dict[str, Any], dict]:
     visuals = []
-    for p, col in (r.parts or [(r.mesh, r.rgba)]):
+    for p, col in r.parts or [(r.mesh, r.rgba)]:
         for v in load_visuals(p):
             v.rgba = tuple(col) if col is not None else v.rgba
             visuals.append(v)
@@ -128,7 +160,9 @@ def _entry(r: AssetRecord, out_dir: Path, cache: Path, collision: str, builtin) 
     if r.texture:
         e["texture"] = portable_spec(r.texture, out_dir)
     if r.parts:
-        e["parts"] = [{"mesh": portable_spec(p, out_dir), **({"rgba": [float(x) for x in c]} if c else {})} for p, c in r.parts]
+        e["parts"] = [
+            {"mesh": portable_spec(p, out_dir), **({"rgba": [float(x) for x in c]} if c else {})} for p, c in r.parts
+        ]
     if r.rgba:
         e["rgba"] = [float(x) for x in r.rgba]
     info = {"collision": "hull"}
@@ -152,9 +186,13 @@ def _entry(r: AssetRecord, out_dir: Path, cache: Path, collision: str, builtin) 
         e["mass"] = round(float(r.mass), 4)
     e["source"] = r.source
     cols = list(r.colors or colour_words(visuals, builtin.colors) or (list(base.colors) if base else DEFAULT_COLOURS))
-    d: dict[str, Any] = {"builder": "external", "label": label, "colors": cols,
-                         "materials": list(r.materials or (base.materials if base else guess_materials(label))),
-                         "scale": "tabletop" if dims.max() < 0.7 else "room"}
+    d: dict[str, Any] = {
+        "builder": "external",
+        "label": label,
+        "colors": cols,
+        "materials": list(r.materials or (base.materials if base else guess_materials(label))),
+        "scale": "tabletop" if dims.max() < 0.7 else "room",
+    }
     if dims.max() < 0.12:
         d["fits_inside"] = True
     front = parse_axis(r.front) if r.front is not None else None
@@ -162,7 +200,13 @@ def _entry(r: AssetRecord, out_dir: Path, cache: Path, collision: str, builtin) 
         d["front"] = [round(float(x), 4) for x in R @ front]
         d["front_phrase"] = r.front_phrase or "the front"
     d["external"] = e
-    info.update({"label": label, "size_m": [round(float(x), 3) for x in dims], "textured": any(v.image is not None for v in visuals)})
+    info.update(
+        {
+            "label": label,
+            "size_m": [round(float(x), 3) for x in dims],
+            "textured": any(v.image is not None for v in visuals),
+        }
+    )
     return r.name, d, info
 
 
@@ -173,8 +217,14 @@ class _Dumper(yaml.SafeDumper):
 _Dumper.add_representer(list, lambda d, v: d.represent_sequence("tag:yaml.org,2002:seq", v, flow_style=True))
 
 
-def import_assets(dirs: list[str | Path], out: str | Path, cache: str | Path | None = None, collision: str = "auto",
-                  include: str = "builtin", progress=None) -> list[dict[str, Any]]:
+def import_assets(
+    dirs: list[str | Path],
+    out: str | Path,
+    cache: str | Path | None = None,
+    collision: str = "auto",
+    include: str = "builtin",
+    progress=None,
+) -> list[dict[str, Any]]:
     """Write the catalog `out` for every asset in `dirs`; returns one summary row per asset."""
     out = Path(out).resolve()
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -195,9 +245,11 @@ def import_assets(dirs: list[str | Path], out: str | Path, cache: str | Path | N
             if progress:
                 progress(rows[-1])
     inc = "builtin" if include == "builtin" else portable_spec(Path(include), out.parent)
-    head = (f"# Written by `refspatial-gen assets import {' '.join(str(Path(d)) for d in dirs)}`; edit fronts with\n"
-            "# `refspatial-gen assets set-front NAME +x \"the handle side\"` and check them with `assets sheet`.\n"
-            "# Paths are relative to this file (shared: = $REFSPATIAL_SHARED_DATA, cache: = $REFSPATIAL_CACHE).\n")
+    head = (
+        f"# Written by `refspatial-gen assets import {' '.join(str(Path(d)) for d in dirs)}`; edit fronts with\n"
+        '# `refspatial-gen assets set-front NAME +x "the handle side"` and check them with `assets sheet`.\n'
+        "# Paths are relative to this file (shared: = $REFSPATIAL_SHARED_DATA, cache: = $REFSPATIAL_CACHE).\n"
+    )
     body = yaml.dump({"include": [inc], "categories": cats}, Dumper=_Dumper, sort_keys=False, width=120)
     out.write_text(head + body)
     return rows

@@ -28,7 +28,12 @@ LIBRARIES = {
             "bottle": {"category": "bottle", "materials": ["glass"]},
             "bread": {"category": "bread", "materials": ["organic"]},
             "can": {"category": "soda can", "materials": ["metal"]},
-            "cereal": {"category": "cereal box", "materials": ["cardboard"], "front": "-y", "front_phrase": "the front panel"},
+            "cereal": {
+                "category": "cereal box",
+                "materials": ["cardboard"],
+                "front": "-y",
+                "front_phrase": "the front panel",
+            },
             "lemon": {"category": "lemon", "materials": ["organic"]},
             "milk": {"category": "milk carton", "materials": ["cardboard"]},
         },
@@ -42,7 +47,9 @@ def unpack(name: str, wheel_dir: Path, dest: Path) -> Path:
     dist = lib["requirement"].split("==")[0].replace("-", "_")
     wheels = sorted(Path(wheel_dir).glob(f"{dist}-{lib['requirement'].split('==')[1]}-*.whl"))
     if not wheels:
-        raise FileNotFoundError(f"no {lib['requirement']} wheel in {wheel_dir}: run `pip download --no-deps {lib['requirement']}`")
+        raise FileNotFoundError(
+            f"no {lib['requirement']} wheel in {wheel_dir}: run `pip download --no-deps {lib['requirement']}`"
+        )
     tmp = dest.with_name(dest.name + ".tmp")
     shutil.rmtree(tmp, ignore_errors=True)
     prefix = lib["prefix"]
@@ -52,8 +59,10 @@ def unpack(name: str, wheel_dir: Path, dest: Path) -> Path:
         for info in z.infolist():
             n = info.filename
             if n in wanted or (n.startswith(prefix + "textures/") and n.endswith(".png")) or n.endswith("LICENSE"):
-                rel = n[len(prefix):] if n.startswith(prefix) else "LICENSE"
-                rel = rel.replace("objects/meshes/", folder + "/")  # same depth: the MTLs' ../../textures/ still resolve
+                rel = n[len(prefix) :] if n.startswith(prefix) else "LICENSE"
+                rel = rel.replace(
+                    "objects/meshes/", folder + "/"
+                )  # same depth: the MTLs' ../../textures/ still resolve
                 (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
                 (tmp / rel).write_bytes(z.read(n))
     (tmp / folder / "annotations.json").write_text(json.dumps(lib["objects"], indent=1))

@@ -85,8 +85,12 @@ def _objects_json(folder: Path) -> list[AssetRecord]:
         mesh = files.get("mesh") or files.get("visual_mesh") or o.get("mesh")
         if not mesh:
             continue
-        r = AssetRecord(str(o.get("name") or Path(mesh).stem), folder / mesh,
-                        str(o.get("category") or category_from_name(Path(mesh).stem)), source=f"{folder.name}/objects.json")
+        r = AssetRecord(
+            str(o.get("name") or Path(mesh).stem),
+            folder / mesh,
+            str(o.get("category") or category_from_name(Path(mesh).stem)),
+            source=f"{folder.name}/objects.json",
+        )
         if files.get("texture"):
             r.texture = folder / files["texture"]
         parts = files.get("collision_convex_parts") or []
@@ -126,13 +130,21 @@ def scan_folder(folder: Path) -> list[AssetRecord]:
     out = []
     suffixes = MESH_SUFFIXES + USD_SUFFIXES
     for p in sorted(folder.rglob("*")):
-        if p.suffix.lower() not in suffixes or not p.is_file() or SKIP_DIRS & {q.lower() for q in p.relative_to(folder).parts[:-1]}:
+        if (
+            p.suffix.lower() not in suffixes
+            or not p.is_file()
+            or SKIP_DIRS & {q.lower() for q in p.relative_to(folder).parts[:-1]}
+        ):
             continue
         rel = p.relative_to(folder)
         named = p.stem if p.stem.lower() not in ("model", "mesh", "textured", "scene") else p.parent.name
         r = AssetRecord(rel.with_suffix("").as_posix(), p, category_from_name(named), source=str(rel))
         side = p.with_suffix(".json")
-        a = json.loads(side.read_text()) if side.exists() else (ann.get(p.stem) or ann.get(rel.as_posix()) or ann.get(p.name) or {})
+        a = (
+            json.loads(side.read_text())
+            if side.exists()
+            else (ann.get(p.stem) or ann.get(rel.as_posix()) or ann.get(p.name) or {})
+        )
         if isinstance(a, dict):
             _apply_annotation(r, a)
         out.append(r)

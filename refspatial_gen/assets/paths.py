@@ -33,9 +33,9 @@ def cache_root() -> Path:
 def resolve_path(spec: str, base: Path | None = None) -> Path:
     """A catalog path spec -> an absolute path (see the module docstring)."""
     if spec.startswith("shared:"):
-        return shared_data_root() / spec[len("shared:"):]
+        return shared_data_root() / spec[len("shared:") :]
     if spec.startswith("cache:"):
-        return cache_root() / spec[len("cache:"):]
+        return cache_root() / spec[len("cache:") :]
     p = Path(os.path.expandvars(spec)).expanduser()
     if p.is_absolute():
         return p
@@ -47,10 +47,14 @@ def missing_hint(spec: str) -> str:
     if spec.startswith("shared:"):
         env = os.environ.get("REFSPATIAL_SHARED_DATA")
         where = f"$REFSPATIAL_SHARED_DATA={env}" if env else f"the default shared data folder {shared_data_root()}"
-        return f" (resolved under {where}; set REFSPATIAL_SHARED_DATA to the folder that holds {spec[7:].split('/')[0]}/)"
+        return (
+            f" (resolved under {where}; set REFSPATIAL_SHARED_DATA to the folder that holds {spec[7:].split('/')[0]}/)"
+        )
     if spec.startswith("cache:"):
-        return (f" (resolved under the asset cache {cache_root()}; set REFSPATIAL_CACHE, or run "
-                "`refspatial-gen assets import` again to rebuild it)")
+        return (
+            f" (resolved under the asset cache {cache_root()}; set REFSPATIAL_CACHE, or run "
+            "`refspatial-gen assets import` again to rebuild it)"
+        )
     return ""
 
 

@@ -57,17 +57,23 @@ def object_rows(sample: Sample, qa: QAPair) -> list[dict[str, Any]]:
                 continue
             g = next((g for g in sample.graphs if g.frame_id == f.frame_id), None)
             node = next((n for n in g.nodes if n.object_id == oid), None) if g is not None else None
-            rows.append({"id": oid, "frame": f.frame_id, "category": o.category,
-                         "phrases": list(node.phrases[:3]) if node is not None else [],
-                         "color": (node.attributes.get("color") if node is not None else None) or o.attributes.get("color"),
-                         "visible_px": int(o.mask.area) if o.mask is not None else None,
-                         "visible_fraction": round(float(o.visible_fraction), 3),
-                         "size_m": [round(float(v), 3) for v in o.box.size]})
+            rows.append(
+                {
+                    "id": oid,
+                    "frame": f.frame_id,
+                    "category": o.category,
+                    "phrases": list(node.phrases[:3]) if node is not None else [],
+                    "color": (node.attributes.get("color") if node is not None else None) or o.attributes.get("color"),
+                    "visible_px": int(o.mask.area) if o.mask is not None else None,
+                    "visible_fraction": round(float(o.visible_fraction), 3),
+                    "size_m": [round(float(v), 3) for v in o.box.size],
+                }
+            )
             break
     return rows
 
 
-def object_crop(sample: Sample, frame_id: str, oid: int, min_side: int = 160) -> "np.ndarray | None":
+def object_crop(sample: Sample, frame_id: str, oid: int, min_side: int = 160) -> np.ndarray | None:
     """The object's 2D box (with a margin) cut from its frame and enlarged so a small object can be judged:
     a reviewer must see what the phrase refers to, not a speck under an overlay label."""
     import cv2
@@ -143,7 +149,9 @@ def build_audit(datasets: list[str], out: Path, n: int = 150, seed: int = 0, min
         sample = samples[(it.label, it.part, it.shard, it.seq)]
         qa = sample.qa[it.qa_index]
         if qa.qa_id != it.qa_id:
-            raise ValueError(f"{it.label}/{it.shard}: sample {it.sample_id} QA {it.qa_index} is {qa.qa_id}, not {it.qa_id}")
+            raise ValueError(
+                f"{it.label}/{it.shard}: sample {it.sample_id} QA {it.qa_index} is {qa.qa_id}, not {it.qa_id}"
+            )
         png = f"items/{k:03d}_{_safe(it.item_id)}.png"
         (out / png).write_bytes(encode_png(render_preview(sample, it.qa_index)))
         objects = object_rows(sample, qa)
@@ -152,15 +160,37 @@ def build_audit(datasets: list[str], out: Path, n: int = 150, seed: int = 0, min
             if crop is not None:
                 o["crop"] = f"items/{k:03d}_{_safe(it.item_id)}_obj{o['id']}.png"
                 (out / o["crop"]).write_bytes(encode_png(crop))
-        rows.append({**it.to_json(), "png": png, "template": qa.template, "question": qa.question,
-                     "answer": qa.answer, "trace": qa.trace, "relations": list(qa.relations),
-                     "objects": objects,
-                     "checks": [{"text": t, "ok": ok} for t, ok in point_checks(sample, qa)]})
-    (out / SAMPLE_FILE).write_text("".join(json.dumps(r, sort_keys=True, ensure_ascii=False) + "\n" for r in rows),
-                                   encoding="utf-8")
-    (out / "audit.json").write_text(json.dumps({"datasets": [[lab, str(d)] for lab, d in pairs], "n": n, "seed": seed,
-                                                "min_per_label": min_per_label, "items": len(rows)},
-                                               indent=1, sort_keys=True) + "\n", encoding="utf-8")
+        rows.append(
+            {
+                **it.to_json(),
+                "png": png,
+                "template": qa.template,
+                "question": qa.question,
+                "answer": qa.answer,
+                "trace": qa.trace,
+                "relations": list(qa.relations),
+                "objects": objects,
+                "checks": [{"text": t, "ok": ok} for t, ok in point_checks(sample, qa)],
+            }
+        )
+    (out / SAMPLE_FILE).write_text(
+        "".join(json.dumps(r, sort_keys=True, ensure_ascii=False) + "\n" for r in rows), encoding="utf-8"
+    )
+    (out / "audit.json").write_text(
+        json.dumps(
+            {
+                "datasets": [[lab, str(d)] for lab, d in pairs],
+                "n": n,
+                "seed": seed,
+                "min_per_label": min_per_label,
+                "items": len(rows),
+            },
+            indent=1,
+            sort_keys=True,
+        )
+        + "\n",
+        encoding="utf-8",
+    )
     (out / VERDICT_FILE).touch()
     index = out / "index.html"
     index.write_text(render_page(rows), encoding="utf-8")
@@ -219,28 +249,41 @@ def _crop_img(o: dict[str, Any]) -> str:
 
 def _item_html(k: int, r: dict[str, Any]) -> str:
     e = html.escape
-    objs = "".join(f"<tr><td>#{o['id']}<br>{_crop_img(o)}</td><td>{e(o['category'])}</td><td>{e('; '.join(o['phrases']))}</td>"
-                   f"<td>{e(str(o['color'] or '-'))}</td><td>{o['visible_px']}</td><td>{o['visible_fraction']}</td>"
-                   f"<td>{' × '.join(f'{v:.2f}' for v in o['size_m'])}</td></tr>" for o in r["objects"])
-    table = ("<table><tr><th>id</th><th>category</th><th>phrases</th><th>colour</th><th>visible px</th>"
-             f"<th>visible fraction</th><th>size (m)</th></tr>{objs}</table>") if objs else "<p>No object named.</p>"
-    return (f'<section class="item" id="item{k}"><p><b>{e(r["item_id"])}</b> · {e(r["label"])} · {e(r["family"])} · '
-            f'{r["steps"]} step(s) · {e(r["template"])} · <span class="v none" id="v{k}">unjudged</span></p>'
-            f'<p>Q: {e(r["question"])}<br><b>A: {e(r["answer"])}</b></p>'
-            f'<img src="{e(r["png"])}" alt="{e(r["item_id"])}">{table}'
-            f'<p><button onclick="save(\'right\')">right (r)</button><button onclick="save(\'wrong\')">wrong (w)</button>'
-            f'<button onclick="save(\'ambiguous\')">ambiguous (a)</button></p>'
-            f'<textarea id="note{k}" placeholder="note (n to type, Esc to leave): what is wrong or unclear"></textarea>'
-            "</section>")
+    objs = "".join(
+        f"<tr><td>#{o['id']}<br>{_crop_img(o)}</td><td>{e(o['category'])}</td><td>{e('; '.join(o['phrases']))}</td>"
+        f"<td>{e(str(o['color'] or '-'))}</td><td>{o['visible_px']}</td><td>{o['visible_fraction']}</td>"
+        f"<td>{' × '.join(f'{v:.2f}' for v in o['size_m'])}</td></tr>"
+        for o in r["objects"]
+    )
+    table = (
+        (
+            "<table><tr><th>id</th><th>category</th><th>phrases</th><th>colour</th><th>visible px</th>"
+            f"<th>visible fraction</th><th>size (m)</th></tr>{objs}</table>"
+        )
+        if objs
+        else "<p>No object named.</p>"
+    )
+    return (
+        f'<section class="item" id="item{k}"><p><b>{e(r["item_id"])}</b> · {e(r["label"])} · {e(r["family"])} · '
+        f'{r["steps"]} step(s) · {e(r["template"])} · <span class="v none" id="v{k}">unjudged</span></p>'
+        f"<p>Q: {e(r['question'])}<br><b>A: {e(r['answer'])}</b></p>"
+        f'<img src="{e(r["png"])}" alt="{e(r["item_id"])}">{table}'
+        f"<p><button onclick=\"save('right')\">right (r)</button><button onclick=\"save('wrong')\">wrong (w)</button>"
+        f"<button onclick=\"save('ambiguous')\">ambiguous (a)</button></p>"
+        f'<textarea id="note{k}" placeholder="note (n to type, Esc to leave): what is wrong or unclear"></textarea>'
+        "</section>"
+    )
 
 
 def render_page(rows: list[dict[str, Any]]) -> str:
     items_json = json.dumps([{"item_id": r["item_id"]} for r in rows]).replace("</", "<\\/")
     body = "\n".join(_item_html(k, r) for k, r in enumerate(rows)) or "<p>No QA pairs found.</p>"
-    return ('<!doctype html>\n<html lang="en"><head><meta charset="utf-8"><title>refspatial-gen audit</title>'
-            f"<style>{_CSS}</style></head><body>\n<header><h1>refspatial-gen audit</h1>"
-            "<p>Judge each QA pair against the picture: <b>r</b> right · <b>w</b> wrong · <b>a</b> ambiguous · "
-            "<b>n</b> note · <b>j/k</b> or arrows to move. <button onclick=\"download()\">Download verdicts.jsonl</button> "
-            '<span id="progress"></span></p></header>\n'
-            f'<script type="application/json" id="items">{items_json}</script>\n{body}\n'
-            f"<script>{_JS}</script></body></html>\n")
+    return (
+        '<!doctype html>\n<html lang="en"><head><meta charset="utf-8"><title>refspatial-gen audit</title>'
+        f"<style>{_CSS}</style></head><body>\n<header><h1>refspatial-gen audit</h1>"
+        "<p>Judge each QA pair against the picture: <b>r</b> right · <b>w</b> wrong · <b>a</b> ambiguous · "
+        '<b>n</b> note · <b>j/k</b> or arrows to move. <button onclick="download()">Download verdicts.jsonl</button> '
+        '<span id="progress"></span></p></header>\n'
+        f'<script type="application/json" id="items">{items_json}</script>\n{body}\n'
+        f"<script>{_JS}</script></body></html>\n"
+    )

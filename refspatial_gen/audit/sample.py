@@ -41,14 +41,34 @@ class Item:
         return (self.label, self.family, self.steps)
 
     def to_json(self) -> dict[str, Any]:
-        return {"item_id": self.item_id, "label": self.label, "part": self.part, "shard": self.shard, "seq": self.seq,
-                "sample_id": self.sample_id, "qa_index": self.qa_index, "qa_id": self.qa_id,
-                "family": self.family, "steps": self.steps, "source": self.source}
+        return {
+            "item_id": self.item_id,
+            "label": self.label,
+            "part": self.part,
+            "shard": self.shard,
+            "seq": self.seq,
+            "sample_id": self.sample_id,
+            "qa_index": self.qa_index,
+            "qa_id": self.qa_id,
+            "family": self.family,
+            "steps": self.steps,
+            "source": self.source,
+        }
 
     @classmethod
-    def from_json(cls, d: dict[str, Any]) -> "Item":
-        return cls(d["label"], int(d["part"]), d["shard"], int(d["seq"]), d["sample_id"], int(d["qa_index"]), d["qa_id"],
-                   d["family"], int(d["steps"]), d["source"])
+    def from_json(cls, d: dict[str, Any]) -> Item:
+        return cls(
+            d["label"],
+            int(d["part"]),
+            d["shard"],
+            int(d["seq"]),
+            d["sample_id"],
+            int(d["qa_index"]),
+            d["qa_id"],
+            d["family"],
+            int(d["steps"]),
+            d["source"],
+        )
 
 
 def parse_dataset_args(args: list[str]) -> list[tuple[str, Path]]:
@@ -88,8 +108,20 @@ def candidates(label: str, part: int, folder: Path) -> list[Item]:
         for m in read_sample_meta(folder / row["name"]):
             src = (m.get("frames") or [{}])[0].get("source", "?")
             for qi, q in enumerate(m["qa"]):
-                out.append(Item(label, part, row["name"], int(m["seq"]), m["sample_id"], qi, q["qa_id"], q["family"],
-                                int(q["steps"]), src))
+                out.append(
+                    Item(
+                        label,
+                        part,
+                        row["name"],
+                        int(m["seq"]),
+                        m["sample_id"],
+                        qi,
+                        q["qa_id"],
+                        q["family"],
+                        int(q["steps"]),
+                        src,
+                    )
+                )
     return out
 
 

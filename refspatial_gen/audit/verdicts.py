@@ -99,8 +99,11 @@ def summarise(audit_dir: Path) -> dict[str, Any]:
     verdicts = read_verdicts(audit_dir)
     judged = [(it, verdicts[it["item_id"]]) for it in items if it["item_id"] in verdicts]
     out: dict[str, Any] = {"items": len(items), "unjudged": len(items) - len(judged), "overall": _rates(judged)}
-    for name, key in (("by_label", lambda it: it["label"]), ("by_family", lambda it: it["family"]),
-                      ("by_steps", lambda it: str(it["steps"]))):
+    for name, key in (
+        ("by_label", lambda it: it["label"]),
+        ("by_family", lambda it: it["family"]),
+        ("by_steps", lambda it: str(it["steps"])),
+    ):
         groups: dict[str, list] = {}
         for it, v in judged:
             groups.setdefault(key(it), []).append((it, v))
@@ -109,8 +112,11 @@ def summarise(audit_dir: Path) -> dict[str, Any]:
     for it, v in judged:
         strata.setdefault(f"{it['label']}/{it['family']}/{it['steps']}", []).append((it, v))
     out["by_stratum"] = {s: _rates(rows) for s, rows in sorted(strata.items())}
-    out["problems"] = [{**{k: it[k] for k in ("item_id", "family", "steps", "label")}, "verdict": v.verdict,
-                        "note": v.note} for it, v in judged if v.verdict != "right"]
+    out["problems"] = [
+        {**{k: it[k] for k in ("item_id", "family", "steps", "label")}, "verdict": v.verdict, "note": v.note}
+        for it, v in judged
+        if v.verdict != "right"
+    ]
     return out
 
 
@@ -123,14 +129,21 @@ def summary_markdown(s: dict[str, Any]) -> str:
             return "-"
         return f"{x['count']} ({100 * x['rate']:.1f}%, {100 * x['ci95'][0]:.1f}–{100 * x['ci95'][1]:.1f})"
 
-    lines = [f"{s['items']} items, {s['items'] - s['unjudged']} judged.", "",
-             "| group | judged | right | wrong (95% CI) | ambiguous (95% CI) |", "|---|---|---|---|---|"]
-    rows = [("**all**", s["overall"])] + [(f"{k}", r) for sec in ("by_label", "by_family", "by_steps")
-                                         for k, r in s[sec].items()]
+    lines = [
+        f"{s['items']} items, {s['items'] - s['unjudged']} judged.",
+        "",
+        "| group | judged | right | wrong (95% CI) | ambiguous (95% CI) |",
+        "|---|---|---|---|---|",
+    ]
+    rows = [("**all**", s["overall"])] + [
+        (f"{k}", r) for sec in ("by_label", "by_family", "by_steps") for k, r in s[sec].items()
+    ]
     for name, r in rows:
         lines.append(f"| {name} | {r['judged']} | {r['right']['count']} | {pct(r, 'wrong')} | {pct(r, 'ambiguous')} |")
     if s["problems"]:
         lines += ["", "| item | verdict | note |", "|---|---|---|"]
-        lines += [f"| `{p['item_id']}` ({p['family']}, {p['steps']} steps) | {p['verdict']} | {p['note']} |"
-                  for p in s["problems"]]
+        lines += [
+            f"| `{p['item_id']}` ({p['family']}, {p['steps']} steps) | {p['verdict']} | {p['note']} |"
+            for p in s["problems"]
+        ]
     return "\n".join(lines) + "\n"

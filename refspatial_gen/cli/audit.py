@@ -11,17 +11,27 @@ SUBCOMMANDS = ("serve", "mark", "summary")
 
 
 def register(sub) -> None:
-    p = sub.add_parser("audit", help="judge a stratified sample of QA pairs by eye; rates with 95%% intervals",
-                       description="`audit [LABEL=]DIR... --out D`: pick a stratified sample (dataset x family x "
-                                   "steps) and write a review page. `audit serve D`: open it with verdicts saved to "
-                                   "D/verdicts.jsonl. `audit mark D ITEM right|wrong|ambiguous [--note]`: record one "
-                                   "verdict. `audit summary D [--json|--markdown]`: rates per stratum.")
-    p.add_argument("args", nargs="+", metavar="ARG", help="dataset folders ([LABEL=]DIR), or a subcommand and its arguments")
+    p = sub.add_parser(
+        "audit",
+        help="judge a stratified sample of QA pairs by eye; rates with 95%% intervals",
+        description="`audit [LABEL=]DIR... --out D`: pick a stratified sample (dataset x family x "
+        "steps) and write a review page. `audit serve D`: open it with verdicts saved to "
+        "D/verdicts.jsonl. `audit mark D ITEM right|wrong|ambiguous [--note]`: record one "
+        "verdict. `audit summary D [--json|--markdown]`: rates per stratum.",
+    )
+    p.add_argument(
+        "args", nargs="+", metavar="ARG", help="dataset folders ([LABEL=]DIR), or a subcommand and its arguments"
+    )
     p.add_argument("--out", help="audit folder to write (for a new audit)")
     p.add_argument("--n", type=int, default=150, help="QA pairs to sample (default 150)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--min-per-dataset", type=int, default=30, dest="min_per",
-                   help="at least this many from each dataset (default 30)")
+    p.add_argument(
+        "--min-per-dataset",
+        type=int,
+        default=30,
+        dest="min_per",
+        help="at least this many from each dataset (default 30)",
+    )
     p.add_argument("--port", type=int, default=8765, help="serve: port on 127.0.0.1 (default 8765)")
     p.add_argument("--note", default="", help="mark: what is wrong or unclear")
     p.add_argument("--json", action="store_true", help="summary: machine-readable")
@@ -103,8 +113,10 @@ def _summary(rest: list[str], as_json: bool, as_markdown: bool) -> int:
         for word in ("right", "wrong", "ambiguous"):
             r = o[word]
             if r["rate"] is not None:
-                print(f"  {word:9s} {r['count']:4d}  {100 * r['rate']:5.1f}%  (95% CI {100 * r['ci95'][0]:.1f}–"
-                      f"{100 * r['ci95'][1]:.1f}%)")
+                print(
+                    f"  {word:9s} {r['count']:4d}  {100 * r['rate']:5.1f}%  (95% CI {100 * r['ci95'][0]:.1f}–"
+                    f"{100 * r['ci95'][1]:.1f}%)"
+                )
         for p in s["problems"]:
             print(f"  {p['verdict']:9s} {p['item_id']}: {p['note']}")
     return 0

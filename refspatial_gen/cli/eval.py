@@ -20,13 +20,23 @@ def register(sub) -> None:
     p = sub.add_parser("eval", help="score predictions (or a baseline) on a dataset; shortcut audit (docs/eval.md)")
     p.add_argument("dir", help="shard directory (with index.json)")
     src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--predictions", help="JSON lines {\"id\", \"text\"}")
+    src.add_argument("--predictions", help='JSON lines {"id", "text"}')
     src.add_argument("--baseline", choices=BASELINES, help="score a built-in baseline instead of a model")
-    src.add_argument("--audit", action="store_true", help="run the text-only and frequent-choice baselines per template")
-    p.add_argument("--split", action="append", choices=["train", "val", "test", "unseen"],
-                   help="evaluate only these splits (repeatable; default: all)")
-    p.add_argument("--variant", choices=["region", "paper"], default="region",
-                   help="answer reward: region (inside the mask, graded outside) or paper (50 px L1 to the gold point)")
+    src.add_argument(
+        "--audit", action="store_true", help="run the text-only and frequent-choice baselines per template"
+    )
+    p.add_argument(
+        "--split",
+        action="append",
+        choices=["train", "val", "test", "unseen"],
+        help="evaluate only these splits (repeatable; default: all)",
+    )
+    p.add_argument(
+        "--variant",
+        choices=["region", "paper"],
+        default="region",
+        help="answer reward: region (inside the mask, graded outside) or paper (50 px L1 to the gold point)",
+    )
     p.add_argument("--point-format", choices=POINT_CONVENTIONS, default="auto", help="how the model writes points")
     p.add_argument("--seed", type=int, default=0, help="seed of the random baseline")
     p.add_argument("--save-predictions", help="with --baseline: also write its predictions as JSON lines")
@@ -57,8 +67,10 @@ def cmd_eval(args) -> int:
     ids = [it.id for it in items]
     audit_rows = None
     if args.audit:
-        recs = {b: evaluate(items, parse_predictions(_lines(predict(b, items, args.seed)), ids))
-                for b in ("text-only", "frequent-choice")}
+        recs = {
+            b: evaluate(items, parse_predictions(_lines(predict(b, items, args.seed)), ids))
+            for b in ("text-only", "frequent-choice")
+        }
         audit_rows = audit(items, recs)
         preds = parse_predictions(_lines(predict("text-only", items, args.seed)), ids)
         source = "baseline:text-only (audit)"
@@ -98,20 +110,29 @@ def _lines(preds: dict[str, str]) -> list[str]:
 
 def _print_text(s: dict, source: str, problems: list[str], audit_rows: list[dict] | None) -> None:
     p = s["problems"]
-    print(f"{source}: success {s['success_rate']:.3f} [{s['ci95'][0]:.3f}, {s['ci95'][1]:.3f}] over {s['n']} QA pairs; "
-          f"reward {s['reward']:.3f}; parse failures {s['parse_failures']}; missing {p['missing_ids']}; unknown ids "
-          f"{p['unknown_ids']}; duplicate ids {p['duplicate_ids']}; malformed lines {p['malformed_lines']}")
+    print(
+        f"{source}: success {s['success_rate']:.3f} [{s['ci95'][0]:.3f}, {s['ci95'][1]:.3f}] over {s['n']} QA pairs; "
+        f"reward {s['reward']:.3f}; parse failures {s['parse_failures']}; missing {p['missing_ids']}; unknown ids "
+        f"{p['unknown_ids']}; duplicate ids {p['duplicate_ids']}; malformed lines {p['malformed_lines']}"
+    )
     comps = ", ".join(f"{k} {v['mean']:.3f} (n={v['n']})" for k, v in s["components"].items() if v["mean"] is not None)
     print(f"  components: {comps}")
     for g in ("family", "steps", "split", "source"):
         rows = s[f"by_{g}"]
-        print(f"  by {g}: " + ", ".join(f"{k}={r['success_rate']:.2f} [{r['ci95'][0]:.2f}, {r['ci95'][1]:.2f}] n={r['n']}"
-                                        for k, r in rows.items()))
+        print(
+            f"  by {g}: "
+            + ", ".join(
+                f"{k}={r['success_rate']:.2f} [{r['ci95'][0]:.2f}, {r['ci95'][1]:.2f}] n={r['n']}"
+                for k, r in rows.items()
+            )
+        )
     for line in problems:
         print(f"  {line}")
     if audit_rows:
         print("  shortcut audit (success: text-only / frequent-choice vs chance):")
         for r in audit_rows:
             ch = "  n/a" if r["chance"] is None else f"{r['chance']:.2f}"
-            print(f"    {r['template']:<40} n={r['n']:<4} chance {ch}  text-only {r['text-only']['success_rate']:.2f}  "
-                  f"frequent {r['frequent-choice']['success_rate']:.2f}{'  LEAKS' if r['leaks'] else ''}")
+            print(
+                f"    {r['template']:<40} n={r['n']:<4} chance {ch}  text-only {r['text-only']['success_rate']:.2f}  "
+                f"frequent {r['frequent-choice']['success_rate']:.2f}{'  LEAKS' if r['leaks'] else ''}"
+            )

@@ -10,14 +10,20 @@ from dataclasses import replace
 
 
 def register(sub) -> None:
-    r = sub.add_parser("rewrite", help="reword a dataset's questions with an LLM server, each rewrite checked",
-                       description="Rewrite the questions of a finished shard folder through an OpenAI-compatible "
-                                   "server. Every rewrite is checked; failures keep the original and are counted. "
-                                   "Replies are cached, so a rerun or resume sends no request twice.")
+    r = sub.add_parser(
+        "rewrite",
+        help="reword a dataset's questions with an LLM server, each rewrite checked",
+        description="Rewrite the questions of a finished shard folder through an OpenAI-compatible "
+        "server. Every rewrite is checked; failures keep the original and are counted. "
+        "Replies are cached, so a rerun or resume sends no request twice.",
+    )
     r.add_argument("dir", help="source shard folder (with index.json)")
     r.add_argument("--out", required=True, help="output shard folder")
-    r.add_argument("--config", default="recipes/rewrite/local.yaml",
-                   help="a recipe or file with a `rewrite:` section (default recipes/rewrite/local.yaml)")
+    r.add_argument(
+        "--config",
+        default="recipes/rewrite/local.yaml",
+        help="a recipe or file with a `rewrite:` section (default recipes/rewrite/local.yaml)",
+    )
     r.add_argument("--server", default=None, help="override the server base URL (.../v1)")
     r.add_argument("--model", default=None, help="override the model id")
     r.add_argument("--cache", default=None, help="reply cache folder (default OUT/rewrite_cache)")
@@ -40,8 +46,11 @@ def _rewrite(args: argparse.Namespace) -> int:
     if cfg is None:
         print(f"rewrite: {args.config} has `enabled: false`", file=sys.stderr)
         return 2
-    over = {k: v for k, v in (("server", args.server), ("model", args.model), ("concurrency", args.concurrency))
-            if v is not None}
+    over = {
+        k: v
+        for k, v in (("server", args.server), ("model", args.model), ("concurrency", args.concurrency))
+        if v is not None
+    }
     cfg = replace(cfg, **over)
 
     def progress(name, c) -> None:
@@ -54,9 +63,11 @@ def _rewrite(args: argparse.Namespace) -> int:
         print(f"rewrite: {e}", file=sys.stderr)
         return 2
     c = res["counts"]
-    print(f"{args.out}: {sum(c.values())} pairs sent, {c.get('accepted', 0)} rewrites kept "
-          f"({100 * accepted_share(c):.1f}%); kept originals by reason: "
-          + (", ".join(f"{k}={v}" for k, v in c.items() if k != "accepted") or "none"))
+    print(
+        f"{args.out}: {sum(c.values())} pairs sent, {c.get('accepted', 0)} rewrites kept "
+        f"({100 * accepted_share(c):.1f}%); kept originals by reason: "
+        + (", ".join(f"{k}={v}" for k, v in c.items() if k != "accepted") or "none")
+    )
     return 0
 
 
@@ -71,8 +82,10 @@ def _language(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(st, indent=1, sort_keys=True))
         return 0
-    print(f"{args.dir}: {st['distinct']} distinct of {st['questions']} questions = {100 * st['share']:.1f}% "
-          f"(masked: {st['masked']}, numbers; format suffix dropped); {st['rewritten']} rewritten by a model")
+    print(
+        f"{args.dir}: {st['distinct']} distinct of {st['questions']} questions = {100 * st['share']:.1f}% "
+        f"(masked: {st['masked']}, numbers; format suffix dropped); {st['rewritten']} rewritten by a model"
+    )
     for fam, f in st["by_family"].items():
         print(f"  {fam:14s} {f['distinct']:5d} / {f['questions']:5d} = {100 * f['share']:.1f}%")
     for n, w in st["most_repeated"]:

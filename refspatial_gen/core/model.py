@@ -16,8 +16,8 @@ from refspatial_gen.core.geometry import Box3D
 from refspatial_gen.core.mask import RLE
 
 
-def _vec(v: Any) -> list[float] | None:
-    return None if v is None else [round(float(x), 6) for x in np.asarray(v).ravel()]
+def _vec(v: Any, nd: int = 6) -> list[float] | None:
+    return None if v is None else [round(float(x), nd) for x in np.asarray(v).ravel()]
 
 
 @dataclass(eq=False)
@@ -84,10 +84,8 @@ class ObjectInstance:
 
 @dataclass(eq=False)
 class SupportSurface:
-    """A horizontal surface things stand on. `box` is the slab; its top face is the surface.
-
-    `object_id` is set when the surface belongs to an object in `Frame.objects` (e.g. a box lid).
-    """
+    """A horizontal surface things stand on. `box` is the slab; its top face is the surface. `object_id` is
+    set when the surface belongs to an object in `Frame.objects` (e.g. a box lid)."""
 
     id: str
     kind: str  # "table", "floor", "shelf", "counter", "object"
@@ -329,14 +327,17 @@ class KeyStep:
 
     type: str  # "Position" | "Orientation" | "Size"
     phrase: str  # exact target phrase used in the trace
-    value: list[float]  # normalised (x, y) | unit vector (camera frame) | metres
+    value: list[float]  # normalised (x, y) | unit vector (camera frame) | Size: [one length in metres]
+    measure: str = ""  # Size only: which length `value` is ("height", "width", "volume": side of an equal cube)
+    extent: list[float] | None = None  # Size only: the full 3-D size (larger / smaller horizontal, height)
 
     def to_json(self) -> dict[str, Any]:
-        return {"type": self.type, "phrase": self.phrase, "value": [round(float(v), 3) for v in self.value]}
+        size = {"measure": self.measure, "extent": _vec(self.extent, 3)} if self.measure else {}  # Size steps
+        return {"type": self.type, "phrase": self.phrase, "value": _vec(self.value, 3), **size}
 
     @classmethod
     def from_json(cls, d: dict[str, Any]) -> KeyStep:
-        return cls(d["type"], d["phrase"], list(d["value"]))
+        return cls(**{**d, "value": list(d["value"])})  # type, phrase, value [, measure, extent]
 
 
 @dataclass(eq=False)

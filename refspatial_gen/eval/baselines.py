@@ -72,7 +72,9 @@ def mean_chance(items: list[Item]) -> float | None:
 
 def _fmt_number(value: float, unit: str | None, quantity: str = "") -> str:
     if unit == "rad" and quantity.startswith("rotation"):
-        word = ("right" if value > 0 else "left") if quantity.endswith("horizontal") else ("up" if value > 0 else "down")
+        word = (
+            ("right" if value > 0 else "left") if quantity.endswith("horizontal") else ("up" if value > 0 else "down")
+        )
         return f"rotate {word} around {abs(np.degrees(value)):.1f} degrees"
     if unit == "rad":
         return f"{np.degrees(value):.1f} degrees"
@@ -108,7 +110,13 @@ def text_only_choice(question: str, options: list[str]) -> int:
 def text_only_point(question: str) -> tuple[float, float]:
     """A point from direction words: left/right move x to 0.3/0.7, top/above/far to y 0.35, bottom/below/near 0.65."""
     w = set(re.findall(r"[a-z]+", _stem(question).lower()))
-    x = 0.3 if w & {"left", "leftmost"} and not w & {"right", "rightmost"} else 0.7 if w & {"right", "rightmost"} and not w & {"left", "leftmost"} else 0.5
+    x = (
+        0.3
+        if w & {"left", "leftmost"} and not w & {"right", "rightmost"}
+        else 0.7
+        if w & {"right", "rightmost"} and not w & {"left", "leftmost"}
+        else 0.5
+    )
     up = w & {"top", "above", "far", "farthest", "behind", "topmost", "back"}
     down = w & {"bottom", "below", "near", "nearest", "front", "bottommost", "closest"}
     y = 0.35 if up and not down else 0.65 if down and not up else 0.5
@@ -155,7 +163,11 @@ def predict(name: str, items: list[Item], seed: int = 0) -> dict[str, str]:
                 out[it.id] = _fmt_number(medians[str(g.quantity)], g.unit, str(g.quantity))
             elif name == "random":
                 lo, hi = _number_range(it)
-                v = float(np.exp(rng.uniform(np.log(lo), np.log(hi)))) if g.unit != "rad" else float(rng.uniform(lo, hi))
+                v = (
+                    float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
+                    if g.unit != "rad"
+                    else float(rng.uniform(lo, hi))
+                )
                 out[it.id] = _fmt_number(v, g.unit, str(g.quantity))
     return out
 

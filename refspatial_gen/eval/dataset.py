@@ -6,9 +6,9 @@ Ids are the QA ids of the JSON-lines export (`export --format jsonl`: `id` = `qa
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable
 
 from refspatial_gen.rewards.gold import Gold, build_gold, gold_text
 
@@ -57,8 +57,19 @@ def load_items(shard_dir: Path | str, splits: Iterable[str] | None = None) -> li
             if (qa.get("answer_struct") or {}).get("kind") == "region" and v not in depths:
                 depths[v] = raw.depth(v)
             gold = build_gold(qa, metas[v], graphs.get(metas[v]["frame_id"]), depths.get(v))
-            items.append(Item(id=qa["qa_id"], gold=gold, family=qa["family"], template=qa["template"],
-                              relations=list(qa.get("relations") or []), steps=int(qa["steps"]),
-                              source=str(metas[v].get("source", "?")), split=split, sample_id=h["sample_id"],
-                              question=qa["question"], gold_text=gold_text(qa)))
+            items.append(
+                Item(
+                    id=qa["qa_id"],
+                    gold=gold,
+                    family=qa["family"],
+                    template=qa["template"],
+                    relations=list(qa.get("relations") or []),
+                    steps=int(qa["steps"]),
+                    source=str(metas[v].get("source", "?")),
+                    split=split,
+                    sample_id=h["sample_id"],
+                    question=qa["question"],
+                    gold_text=gold_text(qa),
+                )
+            )
     return items

@@ -9,9 +9,9 @@ For a duplicate id the first line is used.
 from __future__ import annotations
 
 import json
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterable
 
 
 @dataclass
@@ -24,13 +24,20 @@ class Predictions:
     lines: int = 0
 
     def problems(self) -> dict[str, int]:
-        return {"malformed_lines": len(self.malformed), "unknown_ids": len(self.unknown),
-                "duplicate_ids": len(self.duplicates), "missing_ids": len(self.missing)}
+        return {
+            "malformed_lines": len(self.malformed),
+            "unknown_ids": len(self.unknown),
+            "duplicate_ids": len(self.duplicates),
+            "missing_ids": len(self.missing),
+        }
 
     def problem_lines(self, limit: int = 20) -> list[str]:
         """Readable lines for the terminal and the report (first `limit` of each kind)."""
         out = [f"line {n}: malformed: {why}" for n, why in self.malformed[:limit]]
-        out += [f"line {n}: unknown id {i!r} (not in the dataset or not in the evaluated splits)" for n, i in self.unknown[:limit]]
+        out += [
+            f"line {n}: unknown id {i!r} (not in the dataset or not in the evaluated splits)"
+            for n, i in self.unknown[:limit]
+        ]
         out += [f"line {n}: duplicate id {i!r} (the first prediction is used)" for n, i in self.duplicates[:limit]]
         out += [f"missing prediction for {i!r} (scored as a failure)" for i in self.missing[:limit]]
         return out

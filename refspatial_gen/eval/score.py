@@ -34,16 +34,29 @@ def wilson(k: float, n: int, z: float = Z95) -> tuple[float, float]:
     return (max(0.0, centre - half), min(1.0, centre + half))
 
 
-def evaluate(items: list[Item], preds: Predictions, variant: str = "region", point_convention: str = "auto") -> list[dict]:
+def evaluate(
+    items: list[Item], preds: Predictions, variant: str = "region", point_convention: str = "auto"
+) -> list[dict]:
     """One record per item: id, missing, parsed, success, reward components (None = not applicable)."""
     out = []
     for it in items:
         text = preds.texts.get(it.id)
         if text is None:
-            rec = {"id": it.id, "missing": True, "parsed": False, "success": 0.0, "reward": 0.0, "reward_norm": 0.0,
-                   **{k: (0.0 if k in ("format", "accuracy") or _applies(k, it) else None) for k in WEIGHTS}}
+            rec = {
+                "id": it.id,
+                "missing": True,
+                "parsed": False,
+                "success": 0.0,
+                "reward": 0.0,
+                "reward_norm": 0.0,
+                **{k: (0.0 if k in ("format", "accuracy") or _applies(k, it) else None) for k in WEIGHTS},
+            }
         else:
-            rec = {"id": it.id, "missing": False, **score(text, it.gold, variant=variant, point_convention=point_convention)}
+            rec = {
+                "id": it.id,
+                "missing": False,
+                **score(text, it.gold, variant=variant, point_convention=point_convention),
+            }
         out.append(rec)
     return out
 
@@ -68,9 +81,13 @@ def _row(recs: list[dict]) -> dict[str, Any]:
     n = len(recs)
     k = sum(r["success"] for r in recs)
     lo, hi = wilson(k, n)
-    return {"n": n, "success_rate": k / n if n else 0.0, "ci95": [lo, hi],
-            "reward": sum(r["reward_norm"] for r in recs) / n if n else 0.0,
-            "parse_failures": sum(1 for r in recs if not r["missing"] and not r["parsed"])}
+    return {
+        "n": n,
+        "success_rate": k / n if n else 0.0,
+        "ci95": [lo, hi],
+        "reward": sum(r["reward_norm"] for r in recs) / n if n else 0.0,
+        "parse_failures": sum(1 for r in recs if not r["missing"] and not r["parsed"]),
+    }
 
 
 def summarise(items: list[Item], records: list[dict], preds: Predictions) -> dict[str, Any]:
@@ -81,8 +98,12 @@ def summarise(items: list[Item], records: list[dict], preds: Predictions) -> dic
     for c in WEIGHTS:
         vals = [r[c] for r in records if r[c] is not None]
         comps[c] = {"mean": sum(vals) / len(vals) if vals else None, "n": len(vals), "weight": WEIGHTS[c]}
-    out: dict[str, Any] = {**total, "components": comps, "missing": sum(r["missing"] for r in records),
-                           "problems": preds.problems()}
+    out: dict[str, Any] = {
+        **total,
+        "components": comps,
+        "missing": sum(r["missing"] for r in records),
+        "problems": preds.problems(),
+    }
     for g in GROUPS:
         groups: dict[str, list[dict]] = {}
         for it in items:

@@ -171,7 +171,7 @@ def _generate(
             i = int(rng.integers(len(frames)))
             ctx = views[i]
             fids = [frames[i].frame_id]
-        qid = f"{frames[0].frame_id}:{len(out):02d}"
+        qid = f"{frames[i].frame_id}:{len(out):02d}"  # the asked view (the first of a view pair)
         qa = _instantiate(t, ctx, rng, config, bal, seen, fids, qid, view=i)
         if qa is None and t.answer_type == BOOL:  # the other answer may exist (the balancer catches up)
             qa = _instantiate(t, ctx, rng, config, bal, seen, fids, qid, flip=True, view=i)

@@ -13,6 +13,7 @@ from typing import Any, NamedTuple
 
 from refspatial_gen.core.model import KeyStep
 from refspatial_gen.graph.relations import REGISTRY
+from refspatial_gen.graph.relations.sizes import DERIVED
 from refspatial_gen.qa.index import Reject, SceneIndex
 from refspatial_gen.qa.ops.base import FREE_KINDS, Op
 from refspatial_gen.qa.program import Step, Template
@@ -54,6 +55,30 @@ def plan_keys(t: Template) -> tuple[KeyPlan, ...]:
     return tuple(out)
 
 
+# what a size comparison compares (graph/relations/sizes.py: tall = vertical extent, wide = larger horizontal
+# extent, big = box volume, stated as the side of a cube of that volume so the trace orders objects as the
+# answer does; a largest side would call a banana bigger than an apple)
+_MEASURE_OF = {"height": "height", "width": "width", "volume": "volume"}
+
+
+def size_measure(rel: str) -> str:
+    """The length a Size key step states for a size relation (its mirror's: short -> height)."""
+    r = _RELATIONS[rel]
+    base = r.mirror_of or r.id
+    attr = DERIVED.get(base, ("volume",))[0]
+    return _MEASURE_OF.get(attr, "volume")
+
+
+def size_scalar(extent: list[float], measure: str, volume: float) -> float:
+    """One length of an object: its height or larger horizontal extent (from the rounded (larger horizontal,
+    smaller horizontal, height) size), or the side of a cube of its box volume, rounded as key steps are."""
+    if measure == "height":
+        return extent[2]
+    if measure == "width":
+        return extent[0]
+    return round(float(volume) ** (1.0 / 3.0), 3)
+
+
 def one(v: Any) -> int:
     if isinstance(v, frozenset):
         if len(v) != 1:
@@ -73,6 +98,7 @@ class KeyWriter:
         self._done: dict[str, set[str]] = {"Position": set(), "Size": set(), "Orientation": set()}
         self.final_orient = False  # the answer object's orientation decides a relation: perceive it too
         self.one = one
+        self.size_measure = size_measure  # for ops (they cannot import this module)
 
     def name(self, o: int) -> str:
         return self.idx.phrase.get(o) or f"the target {self.idx.category[o]}"
@@ -84,12 +110,16 @@ class KeyWriter:
             done.add(ph)
             self.out.append(KeyStep("Position", ph, self.idx.key_point(o)))
 
-    def size(self, o: int) -> None:
+    def size(self, o: int, measure: str = "volume") -> None:
+        """RoboRefer's Size step: one length in metres, the one the reasoning compares (`measure`: "height",
+        "width" or "volume", the side of a cube of the box's volume); the full 3-D size stays in `extent`."""
         ph = self.name(o)
         done = self._done["Size"]
         if ph not in done:
             done.add(ph)
-            self.out.append(KeyStep("Size", ph, round_key(self.idx.size(o))))
+            ext = round_key(self.idx.size(o))
+            scalar = size_scalar(ext, measure, self.idx.objects[o].box.volume)
+            self.out.append(KeyStep("Size", ph, [scalar], measure, ext))
 
     def orient(self, o: int) -> None:
         ph = self.name(o)
@@ -104,17 +134,17 @@ def key_steps(t: Template, env: dict[str, Any], ans: Any, idx: SceneIndex) -> li
     keys = KeyWriter(idx, t.steps)
     for kp in t.program.keys:
         rel = kp.rel_literal if kp.rel_slot is None else env[kp.rel_slot]
-        sized = rel is not None and _RELATIONS[rel].key_step == "Size"
+        measure = size_measure(rel) if rel is not None and _RELATIONS[rel].key_step == "Size" else ""
         for nm in kp.single:
             o = one(env[nm])
             keys.pos(o)
-            if sized:
-                keys.size(o)
+            if measure:
+                keys.size(o, measure)
         for nm in kp.lists:
             o = env[nm]
             keys.pos(o)
-            if sized:
-                keys.size(o)
+            if measure:
+                keys.size(o, measure)
         if kp.own:
             kp.step.impl.key_steps(kp.step, kp.extra, env, rel, keys)
     if isinstance(ans, PointValue):

@@ -8,6 +8,11 @@ Text uses the template grammar ({a|b} synonyms, [optional]).
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import Any
+
+import yaml
+
 # relation id -> form -> text. Forms: prep ("A is <prep> B"), cmp ("which is <cmp>"), sup ("the <sup> X"),
 # ord ("the second X <ord>"), noun (a name for measured quantities).
 RELATION_FORMS: dict[str, dict[str, str]] = {
@@ -119,3 +124,43 @@ POINT_INSTRUCTIONS = (
 )
 
 CHOICE_INSTRUCTIONS = ("Answer with the option's letter.", "Choose one option.", "")
+
+
+# "that is" before a relation used after a noun ("the cup {rel.mod} the bowl"): always for relations worded as
+# adjectives ("the spoon that is larger than the bowl", never "the spoon larger than the bowl shorter than..."),
+# optional for prepositions ("the cup [that is] to the left of the bowl")
+ADJECTIVAL = frozenset({"tall", "short", "big", "small", "wide", "thin", "close", "far", "far_from"})
+RELATIVE = ("that is", "which is")
+
+SYNONYMS_FILE = Path(__file__).with_name("data") / "synonyms.yaml"
+
+
+def _load_synonyms(path: Path = SYNONYMS_FILE) -> tuple[dict[str, tuple[str, ...]], dict[str, dict[str, list[str]]]]:
+    """(category -> synonyms, relation -> form -> extra phrasings) from the curated data file."""
+    with open(path, encoding="utf-8") as f:
+        data: dict[str, Any] = yaml.safe_load(f) or {}
+    cats = {str(k): tuple(str(x) for x in v) for k, v in sorted((data.get("categories") or {}).items())}
+    rels = {
+        str(k): {str(f): [str(x) for x in xs] for f, xs in v.items()} for k, v in (data.get("relations") or {}).items()
+    }
+    return cats, rels
+
+
+def _merge(text: str, extra: list[str]) -> str:
+    """A form's text with extra alternatives: merged into a plain `{a|b}` group, else a new group around it."""
+    if text.startswith("{") and text.endswith("}") and text.count("{") == 1 and "[" not in text:
+        return "{" + "|".join([text[1:-1], *extra]) + "}"
+    return "{" + "|".join([text, *extra]) + "}"
+
+
+CATEGORY_SYNONYMS, _RELATION_SYNONYMS = _load_synonyms()
+for _rel, _forms in sorted(_RELATION_SYNONYMS.items()):
+    for _form, _extra in sorted(_forms.items()):
+        if _rel not in RELATION_FORMS or _form not in RELATION_FORMS[_rel]:
+            raise ValueError(f"{SYNONYMS_FILE}: relation {_rel!r} has no {_form!r} form to add synonyms to")
+        RELATION_FORMS[_rel][_form] = _merge(RELATION_FORMS[_rel][_form], _extra)
+
+
+def category_synonyms(category: str) -> tuple[str, ...]:
+    """Other names of a category (empty when none is curated)."""
+    return CATEGORY_SYNONYMS.get(category, ())

@@ -155,7 +155,7 @@ def point_depth_qa(
         if len(out) >= n:
             break
         kind = order[attempt % len(order)]
-        qa_id = f"{frames[0].frame_id}:{start + len(out):02d}"
+        qa_id = f"{frame.frame_id}:{start + len(out):02d}"  # names the view the question asks about
         qa = _make(frame, kind, pool, rng, qa_id)
         if qa is not None:
             out.append(qa)
@@ -193,7 +193,7 @@ def _make_depth(frame: Frame, pool: _Pool, rng: np.random.Generator, base: dict[
     return QAPair(
         template=f"{FAMILY}/depth",
         question=q,
-        answer=fmt_length(z),
+        answer=fmt_length(z, rng),  # unit by magnitude from the sample's generator
         answer_struct=struct,
         relations=["depth"],
         **base,
@@ -218,7 +218,7 @@ def _make_choice(frame: Frame, pool: _Pool, rng: np.random.Generator, base: dict
     q = CHOICE_TEXTS[rel][int(rng.integers(len(CHOICE_TEXTS[rel])))].format(
         a=f"({LETTERS[0]}) {texts[0]}", b=f"({LETTERS[1]}) {texts[1]}"
     )
-    answer = f"({LETTERS[correct]})" if rng.integers(2) == 0 else f"({LETTERS[correct]}) {texts[correct]}"
+    answer = f"({LETTERS[correct]})"  # one answer form per template: the letter (the options are points)
     struct = {
         "kind": "choice",
         "options": texts,

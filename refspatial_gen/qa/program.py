@@ -109,4 +109,5 @@ class Template:
     relations: tuple[str, ...]  # literal relation ids (slot relations are added per instance)
     family: str = ""
     unbound: tuple[str, ...] = ()  # slots only used in text (bound before rendering)
+    answer_form: str = "letter"  # choice answers: "letter" -> "(B)", "letter_option" -> "(B) no" (one per template)
     program: Program = field(default=None, compare=False, repr=False)  # type: ignore[assignment]

@@ -112,7 +112,7 @@ def _bool_answer(raw: bool, t: Template, env: dict[str, Any], rng: SampleRng) ->
     order = ["yes", "no"] if rng.integers(2) == 0 else ["no", "yes"]
     k = order.index("yes" if raw else "no")
     choices = fmt_choices(order)
-    text = f"({LETTERS[k]})" if rng.integers(2) == 0 else f"({LETTERS[k]}) {order[k]}"
+    text = f"({LETTERS[k]}) {order[k]}" if t.answer_form == "letter_option" else f"({LETTERS[k]})"
     struct = {"kind": "choice", "options": order, "letter": LETTERS[k], "answer": order[k]}
     refs = t.program.record.targets.get(BOOL, ())
     return Answer(text, struct, choices, sorted({one(env[r.value]) for r in refs}))
@@ -125,7 +125,7 @@ def _option_answer(raw: OptionValue, t: Template, idx: SceneIndex, rng: SampleRn
     k = perm.index(raw.correct)
     texts = ["" for _ in opts] if raw.marks else [o if isinstance(o, str) else idx.phrase[o] for o in opts]
     choices = fmt_choices(texts)
-    text = f"({LETTERS[k]})" if (raw.marks or rng.integers(2) == 0) else f"({LETTERS[k]}) {texts[k]}"
+    text = f"({LETTERS[k]}) {texts[k]}" if t.answer_form == "letter_option" and texts[k] else f"({LETTERS[k]})"
     struct: dict[str, Any] = {
         "kind": "choice",
         "options": texts,
@@ -158,11 +158,11 @@ def _box(idx: SceneIndex, o: int) -> list[float] | None:
     return None if b is None else [round(float(x), 1) for x in b]
 
 
-def _number_answer(raw: NumberValue, t: Template, env: dict[str, Any]) -> Answer:
+def _number_answer(raw: NumberValue, t: Template, env: dict[str, Any], rng: SampleRng) -> Answer:
     q = raw.quantity
     kind = QUANTITIES[q][2]
     if kind == "length":
-        text, unit = fmt_length(raw.value), "m"
+        text, unit = fmt_length(raw.value, rng), "m"  # the written unit by magnitude; the struct stays in metres
     elif kind == "angle":
         text, unit = fmt_angle(raw.value), "rad"
     else:
@@ -187,7 +187,7 @@ def _answer(t: Template, env: dict[str, Any], ans: Any, idx: SceneIndex, rng: Sa
     if isinstance(raw, OptionValue):
         return _option_answer(raw, t, idx, rng, view)
     if isinstance(raw, NumberValue):
-        return _number_answer(raw, t, env)
+        return _number_answer(raw, t, env, rng)
     raise Reject("answer_type")
 
 

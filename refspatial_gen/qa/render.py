@@ -28,12 +28,52 @@ def fmt_choices(options: list[str]) -> str:
     return " ".join(f"({LETTERS[i]}) {o}".rstrip() for i, o in enumerate(options))
 
 
-def fmt_length(metres: float) -> str:
-    """Lengths under a metre in centimetres (`35 centimeters`), longer ones in metres (`1.42 meters`)."""
-    if metres < 1.0:
-        cm = round(metres * 100.0)
-        return f"{cm} centimeter" + ("s" if cm != 1 else "")
-    return f"{metres:.2f} meters"
+# unit -> (singular, plural, metres per unit). Lengths are written as people write them (RefSpatial varies
+# m / cm / feet / inches by magnitude): the unit is drawn from the QA's own generator, by magnitude.
+LENGTH_WORDS = {
+    "m": ("meter", "meters", 1.0),
+    "cm": ("centimeter", "centimeters", 0.01),
+    "ft": ("foot", "feet", 0.3048),
+    "in": ("inch", "inches", 0.0254),
+}
+# (below this many metres, ((unit, cumulative probability), ...)): under 1 m mostly cm or inches
+UNIT_MIX = (
+    (1.0, (("cm", 0.55), ("in", 0.9), ("m", 1.0))),
+    (3.0, (("m", 0.55), ("ft", 0.9), ("cm", 1.0))),
+    (float("inf"), (("m", 0.7), ("ft", 1.0))),
+)
+
+
+def length_decimals(unit: str, value: float) -> int:
+    """Decimals a length is written with in `unit` (value in that unit): whole centimetres and inches from
+    10 up, one decimal below; metres two decimals below 10 m, one above; feet one decimal."""
+    if unit in ("cm", "in"):
+        return 0 if value >= 9.95 else 1
+    if unit == "m":
+        return 2 if value < 9.995 else 1
+    return 1
+
+
+def length_unit(metres: float, rng: Any) -> str:
+    """The unit for a length, drawn by magnitude (one `random()` draw)."""
+    u = rng.random()
+    for limit, mix in UNIT_MIX:
+        if metres < limit:
+            for unit, cum in mix:
+                if u < cum:
+                    return unit
+    return "m"
+
+
+def fmt_length(metres: float, rng: Any = None, unit: str | None = None) -> str:
+    """A length with a unit by magnitude (`35 centimeters`, `13.8 inches`, `1.42 meters`, `4.7 feet`), the
+    unit drawn from `rng`; without one (and no `unit`), centimetres under a metre, else metres."""
+    if unit is None:
+        unit = length_unit(metres, rng) if rng is not None else ("cm" if metres < 1.0 else "m")
+    one, many, scale = LENGTH_WORDS[unit]
+    v = metres / scale
+    text = f"{v:.{length_decimals(unit, v)}f}"
+    return f"{text} {one if text == '1' else many}"
 
 
 def fmt_angle(rad: float) -> str:
@@ -52,8 +92,8 @@ def fmt_turn(rad: float, axis: str) -> str:
 def fmt_key_value(ks: KeyStep) -> str:
     if ks.type == "Position":
         return fmt_point((ks.value[0], ks.value[1]))
-    if ks.type == "Orientation":
-        return "(" + ", ".join(f"{v:.3f}" for v in ks.value) + ")"
+    if ks.type == "Size" and len(ks.value) == 1:
+        return f"{ks.value[0]:.3f} m"  # RoboRefer's Size step: one length in metres
     return "(" + ", ".join(f"{v:.3f}" for v in ks.value) + ")"
 
 

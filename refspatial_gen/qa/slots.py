@@ -15,7 +15,7 @@ SLOT_KEYS = ("type", "choices", "category", "has_front", "min", "max", "kinds", 
 SLOT_FORMS = {  # placeholder suffixes each slot type renders
     "object": ("", "category", "color"),
     "anchor": ("", "category", "color"),
-    "relation": ("", "prep", "cmp", "sup", "ord", "adj", "noun"),
+    "relation": ("", "prep", "mod", "cmp", "sup", "ord", "adj", "noun"),  # mod: prep after a noun
     "direction": ("",),
     "surface": ("",),
     "number": ("", "value"),

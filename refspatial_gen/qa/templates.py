@@ -19,12 +19,13 @@ from refspatial_gen.qa.planner import plan_program
 from refspatial_gen.qa.program import Ref, SlotSpec, Step, Template
 from refspatial_gen.qa.slots import BUILTIN_PLACEHOLDERS, SLOT_FORMS, Ctx, Path, compile_slots
 from refspatial_gen.qa.steps import assign_binds, assign_bounds, compile_program, flat_refs
-from refspatial_gen.qa.text import Seq, TextSyntaxError, parse, placeholders
+from refspatial_gen.qa.text import Seq, TextSyntaxError, optional_only_placeholders, parse, placeholders
 from refspatial_gen.yamlpos import line_of, load_yaml
 
 __all__ = ["MAX_STEPS", "Ref", "SlotSpec", "Step", "Template", "compile_templates", "load_template_file"]
 MAX_STEPS = 5
-TEMPLATE_KEYS = ("name", "weight", "slots", "program", "text", "instruction", "description")
+TEMPLATE_KEYS = ("name", "weight", "slots", "program", "text", "instruction", "description", "answer_form")
+ANSWER_FORMS = ("letter", "letter_option")  # a choice answer is "(B)" or "(B) no": one form per template
 
 
 def load_template_file(path: str | pathlib.Path, relation_ids: tuple[str, ...] | None = None) -> list[Template]:
@@ -88,6 +89,9 @@ def _compile_one(item: Any, path: tuple[Any, ...], ctx: Ctx, known_rel: tuple[st
     if isinstance(weight, bool) or not isinstance(weight, (int, float)) or not weight >= 0:
         ctx.err(path + ("weight",), f"weight must be a number >= 0, got {weight!r}")
         weight = 1.0
+    answer_form = item.get("answer_form", "letter")
+    if answer_form not in ANSWER_FORMS:
+        ctx.err(path + ("answer_form",), f"answer_form must be one of {', '.join(ANSWER_FORMS)}, got {answer_form!r}")
     slots = compile_slots(item.get("slots"), path + ("slots",), ctx, known_rel)
     steps = compile_program(item.get("program"), path + ("program",), ctx, slots, known_rel)
     texts = _compile_texts(item.get("text"), path + ("text",), ctx, required=True)
@@ -135,6 +139,7 @@ def _compile_one(item: Any, path: tuple[Any, ...], ctx: Ctx, known_rel: tuple[st
         answer_type=answer_type,
         relations=tuple(literal_rels),
         unbound=tuple(sorted(n for n in text_slots if n not in used_in_program)),
+        answer_form=str(answer_form),
     )
     plan_program(t)
     return t
@@ -147,6 +152,12 @@ def _text_slots(
     text_slots = set()
     for j, seq in enumerate(texts + (instr or [])):
         sub = ("text", j) if j < len(texts) else ("instruction", j - len(texts))
+        for ph in sorted(optional_only_placeholders(seq)):
+            ctx.err(
+                path + sub,
+                f"{{{ph}}} appears only inside an optional [...] part: some questions would not say it "
+                "(write it outside the brackets)",
+            )
         for ph in sorted(placeholders(seq)):
             base, _, form = ph.partition(".")
             if base in BUILTIN_PLACEHOLDERS and not form:
@@ -163,7 +174,7 @@ def _text_slots(
                 )
                 continue
             if s.type == "relation":
-                _check_forms(s, form or "prep", ctx, path + sub)
+                _check_forms(s, "prep" if form in ("", "mod") else form, ctx, path + sub)
             text_slots.add(base)
     for st in steps:  # choice options are written out by {choices} (appended when a variant lacks it)
         opt = st.args.get("options")

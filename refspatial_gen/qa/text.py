@@ -64,6 +64,11 @@ def _parse_seq(text: str, pos: int, closers: str) -> tuple[Seq, int]:
             continue
         if ch in closers or (ch == "|" and "}" in closers):
             break
+        if ch == "|" and closers == "]":
+            raise TextSyntaxError(
+                f"'|' at column {pos + 1} inside [...] is plain text there; write [{{a|b}}] for alternatives "
+                "(or \\| for a literal bar)"
+            )
         if ch in "]}":
             raise TextSyntaxError(f"unbalanced {ch!r} at column {pos + 1}")
         if ch == "[":
@@ -124,6 +129,34 @@ def placeholders(seq: Seq) -> frozenset[str]:
         _PLACEHOLDERS.clear()
     _PLACEHOLDERS[id(seq)] = (seq, out)
     return out
+
+
+def required_placeholders(seq: Seq) -> frozenset[str]:
+    """Placeholders every rendering of the variant writes: outside optional parts, and in every option of
+    a synonym group."""
+    out: set[str] = set()
+    for p in seq.parts:
+        if isinstance(p, Slot):
+            out.add(p.name)
+        elif isinstance(p, Alt):
+            out |= frozenset.intersection(*(required_placeholders(o) for o in p.options))
+    return frozenset(out)
+
+
+def optional_only_placeholders(seq: Seq) -> frozenset[str]:
+    """Placeholders the variant writes only inside optional `[...]` parts (some renderings omit them)."""
+    inside: set[str] = set()
+
+    def walk(s: Seq) -> None:
+        for p in s.parts:
+            if isinstance(p, Opt):
+                inside.update(_placeholders(p.body))
+            elif isinstance(p, Alt):
+                for o in p.options:
+                    walk(o)
+
+    walk(seq)
+    return frozenset(inside) - required_placeholders(seq)
 
 
 def _placeholders(seq: Seq) -> set[str]:

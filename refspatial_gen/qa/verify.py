@@ -20,6 +20,7 @@ import numpy as np
 from refspatial_gen.core.mask import denormalise_point
 from refspatial_gen.core.model import Frame, FreeSpaceRegion, QAPair, Sample, SceneGraph
 from refspatial_gen.qa.ops import OPS
+from refspatial_gen.qa.verify_units import LENGTHS, check_length_text, check_size_step
 from refspatial_gen.qa.verify_world import ANGLE_TOL, LENGTH_ABS_TOL, LENGTH_REL_TOL, Fail, Run, Undecided, World, _size
 
 LETTERS = "ABCDEFGH"
@@ -45,7 +46,7 @@ def _close(a: float, b: float, q: str) -> bool:
 
 # ------------------------------------------------------------------------------------------ checks
 _POINTS = re.compile(r"\(\s*(-?[0-9.]+)\s*,\s*(-?[0-9.]+)\s*\)")
-_TRACE_LINE = re.compile(r"^\[(Position|Orientation|Size)\] \[(.+)\]: \(([^)]*)\)$")
+_TRACE_LINE = re.compile(r"^\[(Position|Orientation|Size)\] \[(.+)\]: (?:\(([^)]*)\)|(-?[0-9.]+) m)$")
 
 
 def _answer_key(v: Any) -> Any:
@@ -242,6 +243,8 @@ def _check_number(qa: QAPair, s: dict[str, Any], final: Any) -> list[str]:
     v = float(s.get("value", float("nan")))
     if not _close(v, got, q):
         out.append(f"{q}: answer {v:.4f} but the geometry gives {got:.4f}")
+    if q in LENGTHS:  # a length in any unit people use, at its unit's precision
+        return out + check_length_text(qa.answer, v)
     nums = re.findall(r"-?[0-9]+(?:\.[0-9]+)?", qa.answer)
     if not nums:
         out.append(f"answer text {qa.answer!r} has no number")
@@ -324,7 +327,7 @@ def _check_trace(qa: QAPair, w: World) -> list[str]:
             if not mm:
                 out.append(f"trace line {ln!r} is not '[Type] [phrase]: (values)'")
                 continue
-            vals = [float(x) for x in mm.group(3).split(",")]
+            vals = [float(x) for x in (mm.group(3) if mm.group(3) is not None else mm.group(4)).split(",")]
             if (
                 mm.group(1) != ks.type
                 or mm.group(2) != ks.phrase
@@ -357,9 +360,8 @@ def _check_trace(qa: QAPair, w: World) -> list[str]:
         elif oid is None:
             out.append(f"key step phrase {ks.phrase!r} names no object")
         elif ks.type == "Size":
-            ref = _size(w.objects[oid].box)
-            if any(abs(a - b) > KEY_TOL for a, b in zip(ks.value, ref)):
-                out.append(f"key step Size {ks.phrase!r} {ks.value} differs from the box {[round(r, 3) for r in ref]}")
+            box = w.objects[oid].box
+            out += check_size_step(ks, _size(box), float(np.prod(box.size)))
         elif ks.type == "Orientation":
             o = w.objects[oid]
             if o.front is None:

@@ -15,6 +15,7 @@ import numpy as np
 
 from refspatial_gen.core.mask import denormalise_point
 from refspatial_gen.core.model import Frame, QAPair
+from refspatial_gen.qa.verify_units import stated_length
 
 DEPTH_TOL = 0.01  # m: stated depth vs the depth map
 ANGLE_TOL = math.radians(1.0)
@@ -81,8 +82,8 @@ def verify_point_depth(qa: QAPair, frame: Frame) -> list[str]:
             z = _depth(frame, pts[0])
             if abs(float(s["value"]) - z) > DEPTH_TOL:
                 out.append(f"depth {s['value']:.3f} m but the depth map reads {z:.3f} m")
-            t = _stated(qa.answer)
-            if t is None or abs(t - z) > DEPTH_TOL:
+            said = stated_length(qa.answer)  # any length unit, at its precision
+            if isinstance(said, str) or abs(said[0] - z) > DEPTH_TOL + said[1]:
                 out.append(f"answer text {qa.answer!r} does not match the depth {z:.3f} m")
         elif s.get("kind") == "number" and q in ("rotation_horizontal", "rotation_vertical"):
             axis = q.split("_")[1]

@@ -77,20 +77,25 @@ class Renderer:
             return idx.phrase[v]
         if s.type == "relation":
             f = form or "prep"
+            mod = f == "mod"
+            if mod:
+                f = "prep"
             seq = s.phrases.get(v, {}).get(f)
             if seq is None:
                 text = lexicon.RELATION_FORMS.get(v, {}).get(f)
                 if text is None:
                     raise Reject("no_wording")
                 seq = parsed(text)
-            return render(seq, self, self.rng, sentence=False)
+            out = render(seq, self, self.rng, sentence=False)
+            return self._relative(v, out) if mod else out
         if s.type == "direction":
             seq = s.phrases.get(v, {}).get("") or parsed(lexicon.DIRECTION_FORMS.get(v, v.replace("_", " ")))
             return render(seq, self, self.rng, sentence=False)
         if s.type == "number":
             return str(v) if form == "value" else lexicon.ORDINALS.get(v, f"{v}th")
         if s.type == "category":
-            return _plural(v) if form == "plural" else v
+            word = self._category_word(v)
+            return _plural(word) if form == "plural" else word
         if s.type == "color":
             return v
         if s.type == "surface":
@@ -100,3 +105,23 @@ class Renderer:
         if s.type == "spot":
             return spot_phrase(self.ctx.idx, v, form)
         return str(v)
+
+    def _relative(self, rel: str, prep: str) -> str:
+        """A relation after a noun (`{rel.mod}`): "that is" / "which is" before an adjectival wording
+        ("the spoon that is larger than the bowl"), optional before a preposition ("the cup [that is] left
+        of the bowl"). Without it an adjective chain reads as the question's predicate ("Is the spoon larger
+        than the orange spoon shorter than the bowl?")."""
+        adjectival = rel in lexicon.ADJECTIVAL or prep.endswith(" than")
+        if adjectival or self.rng.random() < 0.5:
+            return f"{lexicon.RELATIVE[int(self.rng.integers(len(lexicon.RELATIVE)))]} {prep}"
+        return prep
+
+    def _category_word(self, category: str) -> str:
+        """The category's name or, half of the time, a curated synonym (qa/data/synonyms.yaml) that is not
+        itself the category of an object in the frame."""
+        syn = lexicon.category_synonyms(category)
+        if not syn or self.rng.random() < 0.5:
+            return category
+        cats = set(self.ctx.idx.category.values())
+        ok = [w for w in syn if w not in cats]
+        return ok[int(self.rng.integers(len(ok)))] if ok else category

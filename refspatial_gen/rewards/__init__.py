@@ -8,8 +8,28 @@
 """
 
 from refspatial_gen.rewards.gold import Gold, build_gold, coerce_gold, gold_text
-from refspatial_gen.rewards.reward import (accuracy_reward, format_reward, point_reward, process_accuracy_reward,
-                                           process_format_reward, region_reward, score, success)
+from refspatial_gen.rewards.reward import (
+    accuracy_reward,
+    format_reward,
+    point_reward,
+    process_accuracy_reward,
+    process_format_reward,
+    region_reward,
+    score,
+    success,
+)
 
-__all__ = ["Gold", "build_gold", "coerce_gold", "gold_text", "accuracy_reward", "format_reward", "point_reward",
-           "process_accuracy_reward", "process_format_reward", "region_reward", "score", "success"]
+__all__ = [
+    "Gold",
+    "build_gold",
+    "coerce_gold",
+    "gold_text",
+    "accuracy_reward",
+    "format_reward",
+    "point_reward",
+    "process_accuracy_reward",
+    "process_format_reward",
+    "region_reward",
+    "score",
+    "success",
+]

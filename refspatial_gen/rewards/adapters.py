@@ -9,7 +9,8 @@ read the gold JSON string from the RFT export's `reward_model` column (`{"style"
 from a plain `ground_truth` column:
 
     from refspatial_gen.rewards.adapters import trl_reward_funcs
-    trainer = GRPOTrainer(model=..., reward_funcs=trl_reward_funcs(), args=GRPOConfig(reward_weights=[1, 1, .25, .25]), ...)
+    trainer = GRPOTrainer(model=..., reward_funcs=trl_reward_funcs(),
+                          args=GRPOConfig(reward_weights=[1, 1, .25, .25]), ...)
 
 verl (checked against volcengine/verl, `NaiveRewardManager` / the reward-loop managers and
 `BatchRewardManager`): a custom reward function is called as `compute_score(data_source=...,
@@ -22,11 +23,18 @@ this file and `name` at `compute_score` (or `compute_score_batch` with `reward_m
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from refspatial_gen.rewards.gold import coerce_gold
-from refspatial_gen.rewards.reward import (WEIGHTS, accuracy_reward, format_reward, process_accuracy_reward,
-                                           process_format_reward, score)
+from refspatial_gen.rewards.reward import (
+    WEIGHTS,
+    accuracy_reward,
+    format_reward,
+    process_accuracy_reward,
+    process_format_reward,
+    score,
+)
 
 
 def completion_text(completion: Any) -> str:
@@ -45,13 +53,15 @@ def completion_text(completion: Any) -> str:
 
 
 def _trl(name: str, fn: Callable[[str, Any], float | None]) -> Callable[..., list[float | None]]:
-    def reward(prompts=None, completions=None, completion_ids=None, ground_truth=None, reward_model=None,
-               **kwargs) -> list[float | None]:
+    def reward(
+        prompts=None, completions=None, completion_ids=None, ground_truth=None, reward_model=None, **kwargs
+    ) -> list[float | None]:
         if ground_truth is None and reward_model is not None:  # the RFT export's verl-style column
             ground_truth = [r["ground_truth"] for r in reward_model]
         if completions is None or ground_truth is None:
-            raise ValueError(f"{name}: needs `completions` and a `reward_model` or `ground_truth` column "
-                             "(export --format rft)")
+            raise ValueError(
+                f"{name}: needs `completions` and a `reward_model` or `ground_truth` column (export --format rft)"
+            )
         if len(ground_truth) != len(completions):
             raise ValueError(f"{name}: {len(completions)} completions but {len(ground_truth)} ground truths")
         return [fn(completion_text(c), coerce_gold(g)) for c, g in zip(completions, ground_truth)]
@@ -78,24 +88,37 @@ def trl_reward_weights() -> list[float]:
     return [WEIGHTS["format"], WEIGHTS["accuracy"], WEIGHTS["process_format"], WEIGHTS["process_accuracy"]]
 
 
-def compute_score(data_source: str | None = None, solution_str: str = "", ground_truth: Any = None,
-                  extra_info: dict | None = None, **kwargs) -> dict:
+def compute_score(
+    data_source: str | None = None,
+    solution_str: str = "",
+    ground_truth: Any = None,
+    extra_info: dict | None = None,
+    **kwargs,
+) -> dict:
     """verl: {"score": weighted reward over the components that apply, divided by its maximum, plus each
     component (n/a components as -1, since verl aggregates numbers) and "success"}."""
     if ground_truth is None:
         raise ValueError("compute_score: ground_truth is missing (reward_model.ground_truth of the RFT export)")
     info = extra_info if isinstance(extra_info, dict) else {}
-    s = score(solution_str or "", coerce_gold(ground_truth), variant=info.get("variant", "paper"),
-              point_convention=info.get("point_convention", "auto"))
+    s = score(
+        solution_str or "",
+        coerce_gold(ground_truth),
+        variant=info.get("variant", "paper"),
+        point_convention=info.get("point_convention", "auto"),
+    )
     out = {"score": float(s["reward_norm"]), "success": float(s["success"])}
     for k in WEIGHTS:
         out[k] = -1.0 if s[k] is None else float(s[k])
     return out
 
 
-def compute_score_batch(data_sources=None, solution_strs=None, ground_truths=None, extra_infos=None, **kwargs) -> list[dict]:
+def compute_score_batch(
+    data_sources=None, solution_strs=None, ground_truths=None, extra_infos=None, **kwargs
+) -> list[dict]:
     """verl's BatchRewardManager convention: lists in, one result per item out."""
     n = len(solution_strs or [])
     data_sources = list(data_sources) if data_sources is not None else [None] * n
     extra_infos = list(extra_infos) if extra_infos is not None else [None] * n
-    return [compute_score(ds, s, gt, ei) for ds, s, gt, ei in zip(data_sources, solution_strs, ground_truths, extra_infos)]
+    return [
+        compute_score(ds, s, gt, ei) for ds, s, gt, ei in zip(data_sources, solution_strs, ground_truths, extra_infos)
+    ]

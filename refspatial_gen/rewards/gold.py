@@ -46,8 +46,15 @@ class Gold:
 
     # --------------------------------------------------------------------- JSON
     def to_json(self) -> dict:
-        d = {"v": GOLD_VERSION, "qa_id": self.qa_id, "kind": self.kind, "image_size": list(self.image_size),
-             "answer": self.answer, "reasoning": bool(self.reasoning), "key_steps": list(self.key_steps)}
+        d = {
+            "v": GOLD_VERSION,
+            "qa_id": self.qa_id,
+            "kind": self.kind,
+            "image_size": list(self.image_size),
+            "answer": self.answer,
+            "reasoning": bool(self.reasoning),
+            "key_steps": list(self.key_steps),
+        }
         if self.kind in ("points", "region"):
             d["points"] = self.points
             d["mask"] = self.mask
@@ -62,17 +69,26 @@ class Gold:
         return json.dumps(self.to_json(), sort_keys=True, separators=(",", ":"))
 
     @classmethod
-    def from_json(cls, d: dict) -> "Gold":
+    def from_json(cls, d: dict) -> Gold:
         if not isinstance(d, dict) or "kind" not in d or "image_size" not in d:
             raise ValueError("gold must be an object with at least 'kind' and 'image_size'")
         if d.get("v", GOLD_VERSION) != GOLD_VERSION:
             raise ValueError(f"gold version {d.get('v')!r} not supported (this code reads {GOLD_VERSION})")
-        return cls(qa_id=str(d.get("qa_id", "")), kind=d["kind"], image_size=tuple(int(x) for x in d["image_size"]),
-                   answer=str(d.get("answer", "")), reasoning=bool(d.get("reasoning", False)),
-                   key_steps=list(d.get("key_steps") or []), points=[list(p) for p in d.get("points") or []],
-                   mask=d.get("mask"), options=list(d.get("options") or []), letter=d.get("letter"),
-                   value=None if d.get("value") is None else float(d["value"]), quantity=d.get("quantity"),
-                   unit=d.get("unit"))
+        return cls(
+            qa_id=str(d.get("qa_id", "")),
+            kind=d["kind"],
+            image_size=tuple(int(x) for x in d["image_size"]),
+            answer=str(d.get("answer", "")),
+            reasoning=bool(d.get("reasoning", False)),
+            key_steps=list(d.get("key_steps") or []),
+            points=[list(p) for p in d.get("points") or []],
+            mask=d.get("mask"),
+            options=list(d.get("options") or []),
+            letter=d.get("letter"),
+            value=None if d.get("value") is None else float(d["value"]),
+            quantity=d.get("quantity"),
+            unit=d.get("unit"),
+        )
 
     # --------------------------------------------------------------------- mask
     def mask_array(self) -> np.ndarray | None:
@@ -120,8 +136,14 @@ def build_gold(qa: dict, frame_meta: dict, graph: dict | None = None, depth: np.
     s = qa.get("answer_struct") or {}
     kind = s.get("kind")
     W, H = (int(x) for x in qa["image_size"])
-    g = Gold(qa_id=qa["qa_id"], kind=kind, image_size=(W, H), answer=qa["answer"], reasoning=bool(qa.get("trace")),
-             key_steps=[dict(k) for k in qa.get("key_steps") or []])
+    g = Gold(
+        qa_id=qa["qa_id"],
+        kind=kind,
+        image_size=(W, H),
+        answer=qa["answer"],
+        reasoning=bool(qa.get("trace")),
+        key_steps=[dict(k) for k in qa.get("key_steps") or []],
+    )
     if kind == "points":
         g.points = [list(map(float, p)) for p in s.get("points") or []]
         oid = (s.get("object_ids") or qa.get("targets") or [None])[0]

@@ -100,14 +100,20 @@ def format_points(points_px: list[tuple[float, float]], width: int, height: int,
     if convention == "normalized":
         return "[" + ", ".join(f"({x / W:.3f}, {y / H:.3f})" for x, y in points_px) + "]"
     if convention == "pixels":
-        return json.dumps([{"point_2d": [int(math.floor(x)), int(math.floor(y))], "label": "target"} for x, y in points_px])
+        return json.dumps(
+            [{"point_2d": [int(math.floor(x)), int(math.floor(y))], "label": "target"} for x, y in points_px]
+        )
     if convention == "qwen1000":
-        return json.dumps([{"point_2d": [round(x / W * 1000), round(y / H * 1000)], "label": "target"} for x, y in points_px])
+        return json.dumps(
+            [{"point_2d": [round(x / W * 1000), round(y / H * 1000)], "label": "target"} for x, y in points_px]
+        )
     if convention == "molmo":
         if len(points_px) == 1:
             x, y = points_px[0]
             return f'<point x="{x / W * 100:.1f}" y="{y / H * 100:.1f}" alt="target">target</point>'
-        attrs = " ".join(f'x{i + 1}="{x / W * 100:.1f}" y{i + 1}="{y / H * 100:.1f}"' for i, (x, y) in enumerate(points_px))
+        attrs = " ".join(
+            f'x{i + 1}="{x / W * 100:.1f}" y{i + 1}="{y / H * 100:.1f}"' for i, (x, y) in enumerate(points_px)
+        )
         return f'<points {attrs} alt="target">target</points>'
     raise ValueError(f"no formatter for convention {convention!r}")
 
@@ -127,11 +133,15 @@ def parse_choice(text: str, options: list[str]) -> int | None:
         return letters.index(found.pop())
     if len(found) > 1:
         return None
-    m = re.match(r"^\s*([A-H])\s*(?:[).:,]|$)", t) or re.search(r"\b(?:answer|option|choice)\s*(?:is|:)?\s*([A-H])\b", t, re.I)
+    m = re.match(r"^\s*([A-H])\s*(?:[).:,]|$)", t) or re.search(
+        r"\b(?:answer|option|choice)\s*(?:is|:)?\s*([A-H])\b", t, re.I
+    )
     if m and m.group(1) in letters:
         return letters.index(m.group(1))
     low = " " + re.sub(r"[^a-z0-9]+", " ", t.lower()) + " "
-    hits = [i for i, o in enumerate(options) if o and (" " + re.sub(r"[^a-z0-9]+", " ", o.lower()).strip() + " ") in low]
+    hits = [
+        i for i, o in enumerate(options) if o and (" " + re.sub(r"[^a-z0-9]+", " ", o.lower()).strip() + " ") in low
+    ]
     if len(hits) == 1:
         return hits[0]
     if len(hits) > 1:  # a longer option can contain a shorter one ("left" in "to the left"): keep the longest
@@ -143,14 +153,39 @@ def parse_choice(text: str, options: list[str]) -> int | None:
 
 # ----------------------------------------------------------------------------- numbers with units
 LENGTH_UNITS = {  # unit word -> metres
-    "m": 1.0, "meter": 1.0, "meters": 1.0, "metre": 1.0, "metres": 1.0,
-    "cm": 0.01, "centimeter": 0.01, "centimeters": 0.01, "centimetre": 0.01, "centimetres": 0.01,
-    "mm": 0.001, "millimeter": 0.001, "millimeters": 0.001, "millimetre": 0.001, "millimetres": 0.001,
-    "ft": 0.3048, "foot": 0.3048, "feet": 0.3048, "'": 0.3048,
-    "in": 0.0254, "inch": 0.0254, "inches": 0.0254, '"': 0.0254,
+    "m": 1.0,
+    "meter": 1.0,
+    "meters": 1.0,
+    "metre": 1.0,
+    "metres": 1.0,
+    "cm": 0.01,
+    "centimeter": 0.01,
+    "centimeters": 0.01,
+    "centimetre": 0.01,
+    "centimetres": 0.01,
+    "mm": 0.001,
+    "millimeter": 0.001,
+    "millimeters": 0.001,
+    "millimetre": 0.001,
+    "millimetres": 0.001,
+    "ft": 0.3048,
+    "foot": 0.3048,
+    "feet": 0.3048,
+    "'": 0.3048,
+    "in": 0.0254,
+    "inch": 0.0254,
+    "inches": 0.0254,
+    '"': 0.0254,
 }
-ANGLE_UNITS = {"deg": math.pi / 180, "degree": math.pi / 180, "degrees": math.pi / 180, "°": math.pi / 180,
-               "rad": 1.0, "radian": 1.0, "radians": 1.0}
+ANGLE_UNITS = {
+    "deg": math.pi / 180,
+    "degree": math.pi / 180,
+    "degrees": math.pi / 180,
+    "°": math.pi / 180,
+    "rad": 1.0,
+    "radian": 1.0,
+    "radians": 1.0,
+}
 _UNIT_RE = "|".join(sorted((re.escape(u) for u in list(LENGTH_UNITS) + list(ANGLE_UNITS)), key=len, reverse=True))
 _QTY = re.compile(rf"({_NUM})\s*({_UNIT_RE})?(?![A-Za-z])", re.I)
 
@@ -175,7 +210,7 @@ def parse_number(text: str, dimension: str, *, signed_by_direction: bool = False
     terms: list[tuple[int, int, float]] = []  # (start, end, SI value) of compatible terms
     for m in _QTY.finditer(t):
         num, unit = m.group(1), (m.group(2) or "").lower()
-        if unit == "in" and re.match(r"\s+(?:the|a|an|front|total)\b", t[m.end():], re.I):
+        if unit == "in" and re.match(r"\s+(?:the|a|an|front|total)\b", t[m.end() :], re.I):
             unit = ""  # "3 in the box": a preposition, not inches
         scale = (LENGTH_UNITS if dimension == "length" else ANGLE_UNITS).get(unit)
         if unit and scale is None:

@@ -71,7 +71,11 @@ def region_mask(frame_meta: dict, graph: dict, region: dict, depth: np.ndarray) 
 def _find(graph, r: dict):
     """The region an answer_struct names (the rule of qa.verify's lookup: surface, kind, anchors, label)."""
     for reg in graph.free_space:
-        if reg.surface_id == r.get("surface_id") and reg.kind == r.get("kind") \
-                and list(reg.anchors) == list(r.get("anchors") or []) and reg.label == r.get("label", reg.label):
+        if (
+            reg.surface_id == r.get("surface_id")
+            and reg.kind == r.get("kind")
+            and list(reg.anchors) == list(r.get("anchors") or [])
+            and reg.label == r.get("label", reg.label)
+        ):
             return reg
     return None

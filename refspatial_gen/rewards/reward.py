@@ -40,8 +40,15 @@ import math
 import numpy as np
 
 from refspatial_gen.rewards.gold import Gold, coerce_gold
-from refspatial_gen.rewards.parse import (normalise_phrase, parse_choice, parse_number, parse_points, parse_steps,
-                                          split_reasoning, answer_part)
+from refspatial_gen.rewards.parse import (
+    answer_part,
+    normalise_phrase,
+    parse_choice,
+    parse_number,
+    parse_points,
+    parse_steps,
+    split_reasoning,
+)
 
 POINT_L1_PX = 50.0
 REGION_FALLOFF_PX = 50.0
@@ -135,7 +142,9 @@ def number_ok(value: float | None, gold: Gold) -> bool:
     return abs(value - gold.value) <= LENGTH_REL_TOL * abs(gold.value)
 
 
-def accuracy_reward(text: str, gold: Gold | dict | str, variant: str = "paper", point_convention: str = "auto") -> float:
+def accuracy_reward(
+    text: str, gold: Gold | dict | str, variant: str = "paper", point_convention: str = "auto"
+) -> float:
     """The answer's reward: point (paper) or region reward for points/placement, right letter, number in tolerance."""
     if variant not in VARIANTS:
         raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
@@ -223,5 +232,10 @@ def score(text: str, gold: Gold | dict | str, variant: str = "region", point_con
     total = sum(WEIGHTS[k] * v for k, v in comp.items() if v is not None)
     top = sum(WEIGHTS[k] for k, v in comp.items() if v is not None)
     ans = parse_answer(answer_part(text), g, point_convention)
-    return {**comp, "reward": total, "reward_norm": total / top, "success": success(answer_part(text), g, point_convention),
-            "parsed": parsed_ok(ans, g)}
+    return {
+        **comp,
+        "reward": total,
+        "reward_norm": total / top,
+        "success": success(answer_part(text), g, point_convention),
+        "parsed": parsed_ok(ans, g),
+    }

@@ -96,6 +96,16 @@ def program_phrases(program: list[dict]) -> tuple[list[str], list[str]]:
     return phrases, fwords
 
 
+def _written(word: str, question: str) -> str:
+    """The name the question uses for a filter word: the word itself or one of its curated synonyms."""
+    from refspatial_gen.qa.lexicon import category_synonyms
+
+    low = question.lower()
+    if re.search(rf"\b{re.escape(word.lower())}", low):
+        return word
+    return next((s for s in category_synonyms(word) if re.search(rf"\b{re.escape(s)}", low)), word)
+
+
 def scene_vocab(graphs: list[SceneGraph]) -> frozenset[str]:
     """Every noun and colour a rewrite could use to name an object: the scene's and generic ones."""
     v = set(rules.NOUNS) | set(rules.COLORS)
@@ -120,6 +130,7 @@ def qa_facts(qa: QAPair, graphs: list[SceneGraph]) -> Facts | None:
         return None
     body, suffix = split
     prog, fwords = program_phrases(qa.program)
+    fwords = [_written(w, qa.question) for w in fwords]  # a category the question names by a synonym
     # the program's phrases, and any other unique phrase of the scene the body contains (longest first)
     scene = [p for g in graphs for n in g.nodes for p in n.phrases]
     _, counts = rules.mask_phrases(body, tuple(p.lower() for p in prog + scene))

@@ -13,6 +13,7 @@ from collections import Counter, defaultdict
 from pathlib import Path
 from typing import Any
 
+from refspatial_gen.qa.lexicon import category_synonyms
 from refspatial_gen.rewrite import rules
 from refspatial_gen.rewrite.facts import split_suffix
 
@@ -44,6 +45,7 @@ def language_stats(d: str | Path, categories: bool = False, top: int = 10) -> di
         for m in read_sample_meta(d / row["name"]):
             phrases = tuple({p.lower() for g in m["graphs"] for n in g["nodes"] for p in n["phrases"]})
             cats = tuple({n["category"] for g in m["graphs"] for n in g["nodes"]}) if categories else ()
+            cats += tuple(s for c in cats for s in category_synonyms(c))  # the names templates may use instead
             rewritten += len(((m.get("meta") or {}).get("rewrite") or {}).get("pairs") or {})
             for q in m["qa"]:
                 r = reduce_question(q["question"], q["answer_struct"], phrases, cats)

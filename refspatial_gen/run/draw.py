@@ -9,10 +9,10 @@ fonts of the machine. Everything is deterministic: same inputs, same pixels.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
-from typing import Iterable, Sequence
 
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
@@ -35,7 +35,8 @@ BLACK = (0, 0, 0)
 
 # The 12 edges of a Box3D: corners are indexed by sign bits (x, y, z) in Box3D.corners() order.
 BOX_EDGES: tuple[tuple[int, int], ...] = tuple(
-    (i, j) for i in range(8) for j in range(i + 1, 8) if bin(i ^ j).count("1") == 1)
+    (i, j) for i in range(8) for j in range(i + 1, 8) if bin(i ^ j).count("1") == 1
+)
 
 
 @lru_cache(maxsize=16)
@@ -101,8 +102,9 @@ class Overlay:
     scale: float
 
     @classmethod
-    def from_rgb(cls, rgb: np.ndarray, display_width: int = 720, min_scale: float = 0.25,
-                 max_scale: float = 3.0) -> "Overlay":
+    def from_rgb(
+        cls, rgb: np.ndarray, display_width: int = 720, min_scale: float = 0.25, max_scale: float = 3.0
+    ) -> Overlay:
         h, w = rgb.shape[:2]
         scale = float(min(max_scale, max(min_scale, display_width / w)))
         size = (max(1, int(round(w * scale))), max(1, int(round(h * scale))))
@@ -120,8 +122,15 @@ class Overlay:
     def _merge(self, layer: Image.Image) -> None:
         self.image = Image.alpha_composite(self.image, layer)
 
-    def polygon(self, uv: np.ndarray, color: RGB, fill_alpha: int = 70, width: int = 2,
-                visible: np.ndarray | None = None, hidden_alpha: float = 0.25) -> None:
+    def polygon(
+        self,
+        uv: np.ndarray,
+        color: RGB,
+        fill_alpha: int = 70,
+        width: int = 2,
+        visible: np.ndarray | None = None,
+        hidden_alpha: float = 0.25,
+    ) -> None:
         """A translucent filled polygon with an opaque outline (pixel coordinates of the source image).
 
         `visible` (bool, source-image size) marks where the polygon's surface is seen; elsewhere (behind
@@ -140,8 +149,9 @@ class Overlay:
             layer = Image.fromarray(arr, "RGBA")
         self._merge(layer)
 
-    def rect(self, bbox: Sequence[float], color: RGB, width: int = 2, label: str | None = None,
-             label_below: bool = False) -> None:
+    def rect(
+        self, bbox: Sequence[float], color: RGB, width: int = 2, label: str | None = None, label_below: bool = False
+    ) -> None:
         """A 2D box (x0, y0, x1, y1) in pixels, exclusive max, as the data model stores it; its label sits
         above the top-left corner, or under the bottom-left one (so two boxes on one object stay readable)."""
         x0, y0 = self._xy(bbox[0], bbox[1])
@@ -158,8 +168,9 @@ class Overlay:
             d.line([self._xy(*a), self._xy(*b)], fill=(*color, 255), width=width)
         self._merge(layer)
 
-    def point(self, u: float, v: float, color: RGB, label: str | None = None, radius: int = 6,
-              hollow: bool = False) -> None:
+    def point(
+        self, u: float, v: float, color: RGB, label: str | None = None, radius: int = 6, hollow: bool = False
+    ) -> None:
         """A marker centred on pixel (u, v) of the source image (pass pixel centres, i.e. +0.5)."""
         x, y = self._xy(u, v)
         layer, d = self._layer()
@@ -179,13 +190,13 @@ class Overlay:
 
     def _label(self, d: ImageDraw.ImageDraw, x: float, y: float, text: str, color: RGB, above: bool) -> None:
         f = font(13, "bold")
-        l, t, r, b = d.textbbox((0, 0), text, font=f)
-        w, h = r - l + 6, b - t + 4
+        x0, t, r, b = d.textbbox((0, 0), text, font=f)
+        w, h = r - x0 + 6, b - t + 4
         x = min(max(0.0, x), self.image.size[0] - w)
         y = y - h if above else y
         y = min(max(0.0, y), self.image.size[1] - h)
         d.rectangle([x, y, x + w, y + h], fill=(*BLACK, 190))
-        d.text((x + 3 - l, y + 2 - t), text, font=f, fill=(*color, 255))
+        d.text((x + 3 - x0, y + 2 - t), text, font=f, fill=(*color, 255))
 
     def rgb(self) -> np.ndarray:
         return np.asarray(self.image.convert("RGB"), dtype=np.uint8).copy()

@@ -17,51 +17,27 @@ import json
 import os
 import resource
 import shutil
-import signal
 import sys
 import time
 import traceback
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from functools import lru_cache
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from refspatial_gen.core.errors import DropUnit, OutputIOError, RunError, Terminated
-from refspatial_gen.core.fsutil import atomic_write_bytes, sha256_file
+from refspatial_gen.core.fsutil import atomic_write_bytes
 from refspatial_gen.core.serialize import dumps
 from refspatial_gen.recipe import Recipe, load_recipe
 from refspatial_gen.run import stats as S
-from refspatial_gen.run.lock import OutputLock
+from refspatial_gen.run.faults import FAULT_ENV, fault
 from refspatial_gen.run.localpool import marker_path
+from refspatial_gen.run.lock import OutputLock
 from refspatial_gen.run.outdir import PARTS, discard_groups, group_files, prepare, remove_strays, run_fingerprint
 from refspatial_gen.run.pipeline import StageTimer, make_sample
 from refspatial_gen.run.plan import Group, Unit, plan_groups, plan_units
-
-FAULT_ENV = "REFSPATIAL_FAULT"  # test hook: "unit:N" | "index" — SIGKILL this process at that point
-_units_done = 0
-
-
-def _fault(point: str, uid: str = "") -> None:
-    """Crash-test hook: kill the process with SIGKILL at a named point when REFSPATIAL_FAULT asks for it
-    ("unit:N" after the N-th unit, "index" while writing the index, "crash:<uid>" when starting that unit;
-    "slow:SECONDS" only sleeps that long after every unit)."""
-    global _units_done
-    spec = os.environ.get(FAULT_ENV)
-    if not spec:
-        return
-    if point == "start":
-        if spec == f"crash:{uid}":
-            os.kill(os.getpid(), signal.SIGKILL)
-        return
-    if point == "unit":
-        if spec.startswith("slow:"):  # a slow run, for tests of what happens while a run is in progress
-            time.sleep(float(spec[5:]))
-            return
-        _units_done += 1
-        if spec == f"unit:{_units_done}":
-            os.kill(os.getpid(), signal.SIGKILL)
-    elif spec == point:
-        os.kill(os.getpid(), signal.SIGKILL)
+from refspatial_gen.run.resume import completed_record
 
 
 @dataclass(frozen=True)
@@ -88,16 +64,18 @@ class GroupTask:
 
 @lru_cache(maxsize=4)
 def _recipe(ref: RecipeRef) -> Recipe:
-    return load_recipe(ref.path, seed=ref.seed, scenes=ref.scenes, input_path=ref.input_path,
-                       allow_roots=ref.allow_roots)
+    return load_recipe(
+        ref.path, seed=ref.seed, scenes=ref.scenes, input_path=ref.input_path, allow_roots=ref.allow_roots
+    )
 
 
 def _write_error(e: OSError, fallback: Path) -> OutputIOError:
     return OutputIOError(str(e.filename or fallback), e.strerror or str(e))
 
 
-def _run_units(task: GroupTask, recipe: Recipe, writer: Any, stats: dict, timer: StageTimer,
-               errors: list[dict[str, str]]) -> None:
+def _run_units(
+    task: GroupTask, recipe: Recipe, writer: Any, stats: dict, timer: StageTimer, errors: list[dict[str, str]]
+) -> None:
     out = Path(task.out_dir)
     skip = dict(task.skip)
     marker = marker_path(out, task.group_index)
@@ -110,7 +88,7 @@ def _run_units(task: GroupTask, recipe: Recipe, writer: Any, stats: dict, timer:
             marker.write_text(uid, encoding="utf-8")  # names the unit if this process dies (localpool.py)
         except OSError as e:
             raise _write_error(e, marker) from None
-        _fault("start", uid)
+        fault("start", uid)
         try:
             sample = make_sample(recipe, Unit(uid, sidx, kind, key), timer, task.out_dir)
         except DropUnit as e:
@@ -130,7 +108,7 @@ def _run_units(task: GroupTask, recipe: Recipe, writer: Any, stats: dict, timer:
             raise _write_error(e, out / f"shard-{task.group_index:05d}.mcap") from None
         timer.add("write", t)
         S.add_sample(stats, sample, kind)
-        _fault("unit")
+        fault("unit")
 
 
 def run_group(task: GroupTask) -> dict[str, Any]:
@@ -142,8 +120,11 @@ def run_group(task: GroupTask) -> dict[str, Any]:
         _recipe.cache_clear()  # the cache is keyed by path: a file edited between two runs of one process
         recipe = _recipe(task.recipe)
     if task.recipe_hash and recipe.hash != task.recipe_hash:
-        raise RunError(f"{task.recipe.path} (or a template it names) changed during the run; run the same "
-                       f"command again to resume with it, or --fresh", 2)
+        raise RunError(
+            f"{task.recipe.path} (or a template it names) changed during the run; run the same "
+            f"command again to resume with it, or --fresh",
+            2,
+        )
     out = Path(task.out_dir)
     base = out / f"shard-{task.group_index:05d}.mcap"
     timer = StageTimer()
@@ -169,8 +150,13 @@ def run_group(task: GroupTask) -> dict[str, Any]:
         marker_path(out, task.group_index).unlink(missing_ok=True)
     except OSError as e:
         raise _write_error(e, record_path) from None
-    return {"record": record, "stage_seconds": timer.seconds, "peak_rss_mb": peak_rss_mb(), "errors": errors,
-            "pid": os.getpid()}
+    return {
+        "record": record,
+        "stage_seconds": timer.seconds,
+        "peak_rss_mb": peak_rss_mb(),
+        "errors": errors,
+        "pid": os.getpid(),
+    }
 
 
 def peak_rss_mb() -> float:
@@ -194,39 +180,26 @@ def _info_dict(info: Any) -> dict[str, Any]:
     return asdict(info)
 
 
-def completed_record(out_dir: Path, group: Group) -> dict[str, Any] | None:
-    """The group's record if the group finished and its shards are intact, else None (redo it)."""
-    p = out_dir / PARTS / f"{group.name}.json"
-    if not p.is_file():
-        return None
-    try:
-        record = json.loads(p.read_bytes())
-    except (OSError, ValueError):
-        return None
-    if not isinstance(record, dict) or record.get("units") != [u.uid for u in group.units] \
-            or not isinstance(record.get("shards"), list) or not isinstance(record.get("stats"), dict):
-        return None
-    for s in record["shards"]:
-        name = s.get("name") if isinstance(s, dict) else None
-        if not isinstance(name, str) or not name.startswith(group.name) or "/" in name or "\\" in name:
-            return None  # a record never names a file outside its own group's shards
-        f = out_dir / name
-        try:
-            if not f.is_file() or f.stat().st_size != s.get("bytes") or sha256_file(f) != s.get("sha256"):
-                return None
-        except OSError:
-            return None
-    return record
-
-
 def _interrupted(kind: str, code: int, out_dir: Path, done: int, total: int) -> RunError:
-    return RunError(f"{kind}: {done} of {total} shard groups are finished and kept in {out_dir}; run the same "
-                    f"command again to resume", code)
+    return RunError(
+        f"{kind}: {done} of {total} shard groups are finished and kept in {out_dir}; run the same "
+        f"command again to resume",
+        code,
+    )
 
 
-def run_plan(recipe: Recipe, ref: RecipeRef, out_dir: Path, workers: int = 1, executor: str = "local",
-             ray_address: str | None = None, strict: bool = False, fresh: bool = False,
-             progress: bool = True, on_group_done: Callable[[int], None] | None = None) -> dict[str, Any]:
+def run_plan(
+    recipe: Recipe,
+    ref: RecipeRef,
+    out_dir: Path,
+    workers: int = 1,
+    executor: str = "local",
+    ray_address: str | None = None,
+    strict: bool = False,
+    fresh: bool = False,
+    progress: bool = True,
+    on_group_done: Callable[[int], None] | None = None,
+) -> dict[str, Any]:
     """Run (or resume) the whole plan into `out_dir`, holding its lock; returns {"index", "stats", "run_log"}.
 
     Ctrl-C / SIGTERM: workers stopped, groups in flight discarded, RunError (exit 130 / 143) saying how to
@@ -243,17 +216,40 @@ def run_plan(recipe: Recipe, ref: RecipeRef, out_dir: Path, workers: int = 1, ex
         units = plan_units(recipe)  # input errors stop here, before the folder is touched
         fingerprint = run_fingerprint(recipe, out_dir)
         started = True
-        return _run_locked(recipe, ref, out_dir, units, fingerprint, workers, executor, ray_address, strict, fresh,
-                           progress, on_group_done)
+        return _run_locked(
+            recipe,
+            ref,
+            out_dir,
+            units,
+            fingerprint,
+            workers,
+            executor,
+            ray_address,
+            strict,
+            fresh,
+            progress,
+            on_group_done,
+        )
     finally:
         lock.release()
         if not started and not existed:  # nothing was planned: leave no folder behind (only we wrote in it)
             shutil.rmtree(out_dir, ignore_errors=True)
 
 
-def _run_locked(recipe: Recipe, ref: RecipeRef, out_dir: Path, units: list[Unit], fingerprint: dict[str, Any],
-                workers: int, executor: str, ray_address: str | None, strict: bool, fresh: bool, progress: bool,
-                on_group_done: Callable[[int], None] | None) -> dict[str, Any]:
+def _run_locked(
+    recipe: Recipe,
+    ref: RecipeRef,
+    out_dir: Path,
+    units: list[Unit],
+    fingerprint: dict[str, Any],
+    workers: int,
+    executor: str,
+    ray_address: str | None,
+    strict: bool,
+    fresh: bool,
+    progress: bool,
+    on_group_done: Callable[[int], None] | None,
+) -> dict[str, Any]:
     t_start = time.time()
     prepare(out_dir, fingerprint, fresh)
     groups = plan_groups(units, recipe.shards["samples_per_shard"])
@@ -262,8 +258,18 @@ def _run_locked(recipe: Recipe, ref: RecipeRef, out_dir: Path, units: list[Unit]
         rec = completed_record(out_dir, g)
         if rec is not None:
             records[g.index] = rec
-    tasks = [GroupTask(ref, str(out_dir), g.index, tuple((u.uid, u.source_index, u.kind, u.key) for u in g.units),
-                       strict, recipe_hash=recipe.hash) for g in groups if g.index not in records]
+    tasks = [
+        GroupTask(
+            ref,
+            str(out_dir),
+            g.index,
+            tuple((u.uid, u.source_index, u.kind, u.key) for u in g.units),
+            strict,
+            recipe_hash=recipe.hash,
+        )
+        for g in groups
+        if g.index not in records
+    ]
     results: list[dict[str, Any]] = []
     bar = _progress(len(units), sum(len(g.units) for g in groups if g.index in records), progress)
     gen = _execute(tasks, workers, executor, ray_address, out_dir)
@@ -288,9 +294,17 @@ def _run_locked(recipe: Recipe, ref: RecipeRef, out_dir: Path, units: list[Unit]
     return _finish(recipe, out_dir, groups, records, results, fingerprint, workers, executor, t_start)
 
 
-def _finish(recipe: Recipe, out_dir: Path, groups: list[Group], records: dict[int, dict[str, Any]],
-            results: list[dict[str, Any]], fingerprint: dict[str, Any], workers: int, executor: str,
-            t_start: float) -> dict[str, Any]:
+def _finish(
+    recipe: Recipe,
+    out_dir: Path,
+    groups: list[Group],
+    records: dict[int, dict[str, Any]],
+    results: list[dict[str, Any]],
+    fingerprint: dict[str, Any],
+    workers: int,
+    executor: str,
+    t_start: float,
+) -> dict[str, Any]:
     """Merge the group records, remove stray shard files, write index.json (last) and the run log."""
     from refspatial_gen.shards.index import write_index
 
@@ -303,7 +317,7 @@ def _finish(recipe: Recipe, out_dir: Path, groups: list[Group], records: dict[in
     strays = remove_strays(out_dir, {s["name"] for s in shards}, len(groups))
     if os.environ.get(FAULT_ENV) == "index":  # simulate dying half-way through writing the index
         (out_dir / "index.json.partial").write_bytes(b'{"shards": [')
-        _fault("index")
+        fault("index")
     from refspatial_gen.run.splits import index_section
 
     try:
@@ -311,15 +325,23 @@ def _finish(recipe: Recipe, out_dir: Path, groups: list[Group], records: dict[in
     except OSError as e:
         raise OutputIOError(str(e.filename or out_dir / "index.json"), e.strerror or str(e)) from None
     wall = time.time() - t_start
-    stage = {k: round(sum(r["stage_seconds"].get(k, 0.0) for r in results), 3) for k in ("load", "graph", "qa", "write")}
+    stage = {
+        k: round(sum(r["stage_seconds"].get(k, 0.0) for r in results), 3) for k in ("load", "graph", "qa", "write")
+    }
     run_log = {
-        "wall_seconds": round(wall, 3), "stage_seconds": stage, "workers": workers, "executor": executor,
-        "groups_run": len(results), "groups_resumed": len(groups) - len(results),
+        "wall_seconds": round(wall, 3),
+        "stage_seconds": stage,
+        "workers": workers,
+        "executor": executor,
+        "groups_run": len(results),
+        "groups_resumed": len(groups) - len(results),
         "units_per_s": round(sum(len(r["record"]["units"]) for r in results) / wall, 3) if wall > 0 else 0.0,
         "qa_per_s": round(sum(r["record"]["stats"]["qa_pairs"] for r in results) / wall, 3) if wall > 0 else 0.0,
         "peak_rss_mb_per_worker": round(max((r["peak_rss_mb"] for r in results), default=0.0), 1),
-        "errors": [e for r in results for e in r["errors"]], "stray_files_removed": strays,
-        "started": time.strftime("%Y-%m-%dT%H:%M:%S", time.localtime(t_start)), "host": os.uname().nodename,
+        "errors": [e for r in results for e in r["errors"]],
+        "stray_files_removed": strays,
+        "started": time.strftime("%Y-%m-%dT%H:%M:%S", time.localtime(t_start)),
+        "host": os.uname().nodename,
     }
     try:
         (out_dir / "run_log.json").write_text(json.dumps(run_log, indent=2, sort_keys=True))
@@ -331,8 +353,15 @@ def _finish(recipe: Recipe, out_dir: Path, groups: list[Group], records: dict[in
 def _progress(total: int, initial: int, enabled: bool):
     from tqdm import tqdm
 
-    return tqdm(total=total, initial=initial, unit="scene", desc="generating", disable=not enabled,
-                dynamic_ncols=True, file=sys.stderr)
+    return tqdm(
+        total=total,
+        initial=initial,
+        unit="scene",
+        desc="generating",
+        disable=not enabled,
+        dynamic_ncols=True,
+        file=sys.stderr,
+    )
 
 
 def _execute(tasks: list[GroupTask], workers: int, executor: str, ray_address: str | None, out_dir: Path):

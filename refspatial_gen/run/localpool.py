@@ -21,12 +21,13 @@ import sys
 import threading
 import time
 from collections import Counter, deque
+from collections.abc import Callable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import replace
 from multiprocessing import get_context
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any
 
 from refspatial_gen.core.errors import RunError
 
@@ -69,8 +70,9 @@ def worker_init(ppid: int) -> None:
 
 
 def _new_pool(workers: int) -> ProcessPoolExecutor:
-    return ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn"), initializer=worker_init,
-                               initargs=(os.getpid(),))
+    return ProcessPoolExecutor(
+        max_workers=workers, mp_context=get_context("spawn"), initializer=worker_init, initargs=(os.getpid(),)
+    )
 
 
 def stop_pool(pool: ProcessPoolExecutor) -> None:
@@ -130,12 +132,16 @@ def run_isolated(task: Any, out_dir: Path, run_group: Callable[[Any], dict]) -> 
         except BrokenProcessPool:
             uid = read_marker(out_dir, task.group_index)
             if uid is None:
-                raise RunError(f"shard group {task.group_index}: its worker process died before starting a "
-                               f"unit (out of memory?); finished groups are kept, run the same command again "
-                               f"to resume") from None
+                raise RunError(
+                    f"shard group {task.group_index}: its worker process died before starting a "
+                    f"unit (out of memory?); finished groups are kept, run the same command again "
+                    f"to resume"
+                ) from None
             crashes[uid] += 1
-            print(f"refspatial-gen: unit {uid} killed its worker process ({crashes[uid]} of {MAX_UNIT_CRASHES})",
-                  file=sys.stderr)
+            print(
+                f"refspatial-gen: unit {uid} killed its worker process ({crashes[uid]} of {MAX_UNIT_CRASHES})",
+                file=sys.stderr,
+            )
             if crashes[uid] >= MAX_UNIT_CRASHES:
                 task = replace(task, skip=tuple(task.skip) + ((uid, "worker_crashed"),))
         finally:

@@ -42,8 +42,10 @@ def pid_alive(pid: int) -> bool:
 
 
 def describe(holder: dict[str, Any]) -> str:
-    return (f"pid {holder.get('pid', '?')} on {holder.get('host', '?')} since {holder.get('started', '?')} "
-            f"({holder.get('command', '?')})")
+    return (
+        f"pid {holder.get('pid', '?')} on {holder.get('host', '?')} since {holder.get('started', '?')} "
+        f"({holder.get('command', '?')})"
+    )
 
 
 def _read_holder(fd: int) -> dict[str, Any]:
@@ -72,14 +74,21 @@ class OutputLock:
             holder = _read_holder(fd)
             os.close(fd)
             if e.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
-                raise RunError(f"{self.path.parent} is in use by another run: {describe(holder)}; wait for it "
-                               f"to finish or use another --out", 3) from None
+                raise RunError(
+                    f"{self.path.parent} is in use by another run: {describe(holder)}; wait for it "
+                    f"to finish or use another --out",
+                    3,
+                ) from None
             if e.errno not in (errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS):
                 raise
             fd = self._acquire_without_flock()
         self.fd = fd
-        me = {"pid": os.getpid(), "host": _host(), "started": time.strftime("%Y-%m-%dT%H:%M:%S"),
-              "command": " ".join(sys.argv[:1] + sys.argv[1:])[:300]}
+        me = {
+            "pid": os.getpid(),
+            "host": _host(),
+            "started": time.strftime("%Y-%m-%dT%H:%M:%S"),
+            "command": " ".join(sys.argv[:1] + sys.argv[1:])[:300],
+        }
         os.ftruncate(fd, 0)
         os.pwrite(fd, json.dumps(me, sort_keys=True).encode("utf-8"), 0)
         os.fsync(fd)
@@ -110,7 +119,7 @@ class OutputLock:
         os.close(self.fd)
         self.fd = None
 
-    def __enter__(self) -> "OutputLock":
+    def __enter__(self) -> OutputLock:
         self.acquire()
         return self
 

@@ -87,8 +87,12 @@ def input_manifest(root: str | Path, cache: Path | None = None) -> dict[str, Any
         h.update(f"{rel}\0{size}\0{digest}\n".encode("utf-8", "surrogateescape"))
     if cache is not None and (todo or len(known) != len(entries)):
         atomic_write_bytes(cache, json.dumps({"root": str(root), "entries": entries}).encode())
-    return {"files": len(entries), "bytes": sum(e[1] for e in entries), "digest": h.hexdigest(),
-            "hashed_now": len(todo)}
+    return {
+        "files": len(entries),
+        "bytes": sum(e[1] for e in entries),
+        "digest": h.hexdigest(),
+        "hashed_now": len(todo),
+    }
 
 
 def bench_manifest(work: Path, total_mb: int = 256, files: int = 64) -> dict[str, Any]:
@@ -110,5 +114,10 @@ def bench_manifest(work: Path, total_mb: int = 256, files: int = 64) -> dict[str
     t2 = time.perf_counter()
     assert again["digest"] == first["digest"] and again["hashed_now"] == 0
     mb = first["bytes"] / 1e6
-    return {"input_mb": round(mb, 1), "files": first["files"], "first_run_s": round(t1 - t0, 3),
-            "hash_mb_per_s": round(mb / (t1 - t0), 1), "resume_check_s": round(t2 - t1, 4)}
+    return {
+        "input_mb": round(mb, 1),
+        "files": first["files"],
+        "first_run_s": round(t1 - t0, 3),
+        "hash_mb_per_s": round(mb / (t1 - t0), 1),
+        "resume_check_s": round(t2 - t1, 4),
+    }

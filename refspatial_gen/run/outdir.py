@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
 from refspatial_gen.core.errors import RunError
 from refspatial_gen.core.fsutil import atomic_write_bytes
@@ -47,8 +48,9 @@ def _differences(old: Any, new: dict[str, Any]) -> list[str]:
             continue
         if a.get("input_digest") != b.get("input_digest") or a.get("input") != b.get("input"):
             out.append(f"input of sources[{i}] (content differs)")
-        elif {k: v for k, v in a.items() if not k.startswith("input")} != \
-                {k: v for k, v in b.items() if not k.startswith("input")}:
+        elif {k: v for k, v in a.items() if not k.startswith("input")} != {
+            k: v for k, v in b.items() if not k.startswith("input")
+        }:
             out.append(f"sources[{i}]")
     return out or ["run record"]
 
@@ -62,8 +64,11 @@ def prepare(out_dir: Path, fingerprint: dict[str, Any], fresh: bool) -> None:
         except (OSError, ValueError):
             old = None
         if old != fingerprint:
-            raise RunError(f"{out_dir} holds the output of a different run ({', '.join(_differences(old, fingerprint))} "
-                           f"differ); use another --out or pass --fresh to replace it", 2)
+            raise RunError(
+                f"{out_dir} holds the output of a different run ({', '.join(_differences(old, fingerprint))} "
+                f"differ); use another --out or pass --fresh to replace it",
+                2,
+            )
     if fresh:
         for p in list(out_dir.glob("shard-*")) + [out_dir / "index.json", out_dir / "run_log.json"]:
             if p.is_file():

@@ -51,8 +51,9 @@ def make_sample(recipe: Recipe, unit: Unit, timer: StageTimer, out_dir: str | No
     timer.add("qa", t)
     if not qa:
         raise DropUnit("no_questions", f"{unit.key}: no question passed the checks")
-    sample = Sample(sample_id=unit.uid, frames=frames, graphs=graphs, qa=qa, unit_key=unit.key,
-                    meta={"source": unit.kind})
+    sample = Sample(
+        sample_id=unit.uid, frames=frames, graphs=graphs, qa=qa, unit_key=unit.key, meta={"source": unit.kind}
+    )
     if recipe.rewrite is not None:  # LLM rewording of the questions, each checked (docs/rewrite.md)
         from refspatial_gen.rewrite.stage import rewrite_sample
 

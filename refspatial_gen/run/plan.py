@@ -93,21 +93,35 @@ def source_keys(s: SourceSpec, n: int) -> list[str]:
         raise
     except DropUnit as e:
         raise InputError(where, f"{e.reason}: {e.detail}" if e.detail else e.reason) from None
-    except (ValueError, OSError, KeyError, TypeError, IndexError, AttributeError, RuntimeError, EOFError,
-            struct.error) as e:  # RuntimeError: what native parsers (pycolmap, USD) raise on a broken file
+    except (
+        ValueError,
+        OSError,
+        KeyError,
+        TypeError,
+        IndexError,
+        AttributeError,
+        RuntimeError,
+        EOFError,
+        struct.error,
+    ) as e:  # RuntimeError: what native parsers (pycolmap, USD) raise on a broken file
         msg = f"{e.strerror}: {e.filename}" if isinstance(e, OSError) and e.strerror else f"{e}"
         raise InputError(where, f"cannot list {s.kind} units: {msg or type(e).__name__}") from None
     if not keys:
-        raise InputError(where, f"no {s.kind} units found: nothing the {s.kind} source can read"
-                                f"{_extensions_hint(s.input)}")
+        raise InputError(
+            where, f"no {s.kind} units found: nothing the {s.kind} source can read{_extensions_hint(s.input)}"
+        )
     return keys
 
 
 def plan_units(recipe: Recipe) -> list[Unit]:
     weighted = [s for s in recipe.sources if s.scenes is None]
     fixed_total = sum(s.scenes for s in recipe.sources if s.scenes is not None)
-    counts = dict(zip([s.index for s in weighted],
-                      split_by_weight(max(recipe.scenes - fixed_total, 0), [s.weight for s in weighted]) if weighted else []))
+    counts = dict(
+        zip(
+            [s.index for s in weighted],
+            split_by_weight(max(recipe.scenes - fixed_total, 0), [s.weight for s in weighted]) if weighted else [],
+        )
+    )
     units: list[Unit] = []
     for s in recipe.sources:
         n = s.scenes if s.scenes is not None else counts[s.index]
@@ -118,13 +132,17 @@ def plan_units(recipe: Recipe) -> list[Unit]:
     uids = [u.uid for u in units]
     if len(set(uids)) != len(uids):
         dup = next(u for u, c in Counter(uids).items() if c > 1)
-        raise InputError(dup.split("/", 1)[0], f"the source produced the unit {dup!r} twice (duplicate ids in the input?)")
+        raise InputError(
+            dup.split("/", 1)[0], f"the source produced the unit {dup!r} twice (duplicate ids in the input?)"
+        )
     return units
 
 
 def plan_groups(units: list[Unit], samples_per_shard: int) -> list[Group]:
-    return [Group(i // samples_per_shard, tuple(units[i : i + samples_per_shard]))
-            for i in range(0, len(units), samples_per_shard)]
+    return [
+        Group(i // samples_per_shard, tuple(units[i : i + samples_per_shard]))
+        for i in range(0, len(units), samples_per_shard)
+    ]
 
 
 def unit_rng(seed: int, uid: str) -> np.random.Generator:

@@ -14,9 +14,10 @@ from __future__ import annotations
 
 import os
 import sys
+from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 from refspatial_gen.core.errors import RunError
 
@@ -35,15 +36,25 @@ def execute_on_ray(tasks: list, workers: int, address: str | None, out_dir: Path
     from refspatial_gen.run.executor import run_group
     from refspatial_gen.run.localpool import read_marker
 
-    env = {k: os.environ[k] for k in ("MUJOCO_GL", "PYOPENGL_PLATFORM", "REFSPATIAL_SHARED_DATA",
-                                      "REFSPATIAL_ALLOWED_ROOTS", "REFSPATIAL_FAULT") if k in os.environ}
+    env = {
+        k: os.environ[k]
+        for k in (
+            "MUJOCO_GL",
+            "PYOPENGL_PLATFORM",
+            "REFSPATIAL_SHARED_DATA",
+            "REFSPATIAL_ALLOWED_ROOTS",
+            "REFSPATIAL_FAULT",
+        )
+        if k in os.environ
+    }
     started_here = not ray.is_initialized()
     if started_here:
         if address:
             ray.init(address=address, runtime_env={"env_vars": env}, log_to_driver=True)
         else:
-            ray.init(num_cpus=max(1, workers), include_dashboard=False, runtime_env={"env_vars": env},
-                     log_to_driver=True)
+            ray.init(
+                num_cpus=max(1, workers), include_dashboard=False, runtime_env={"env_vars": env}, log_to_driver=True
+            )
     pending: dict = {}
     try:
         remote = ray.remote(num_cpus=1, max_retries=RAY_RETRIES)(run_group)
@@ -72,9 +83,13 @@ def execute_on_ray(tasks: list, workers: int, address: str | None, out_dir: Path
 def _without_crasher(task: Any, uid: str | None) -> Any:
     """The group again, minus the unit that killed its worker RAY_RETRIES + 1 times in a row."""
     if uid is None or uid in dict(task.skip):
-        raise RunError(f"shard group {task.group_index}: its Ray worker died {RAY_RETRIES + 1} times"
-                       f"{'' if uid is None else f' on unit {uid}'} (out of memory? a node lost?); finished "
-                       f"groups are kept, run the same command again to resume") from None
-    print(f"refspatial-gen: unit {uid} killed its Ray worker {RAY_RETRIES + 1} times; dropped (worker_crashed)",
-          file=sys.stderr)
+        raise RunError(
+            f"shard group {task.group_index}: its Ray worker died {RAY_RETRIES + 1} times"
+            f"{'' if uid is None else f' on unit {uid}'} (out of memory? a node lost?); finished "
+            f"groups are kept, run the same command again to resume"
+        ) from None
+    print(
+        f"refspatial-gen: unit {uid} killed its Ray worker {RAY_RETRIES + 1} times; dropped (worker_crashed)",
+        file=sys.stderr,
+    )
     return replace(task, skip=tuple(task.skip) + ((uid, "worker_crashed"),))

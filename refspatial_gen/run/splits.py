@@ -28,8 +28,9 @@ for any worker count.
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
 from refspatial_gen.core.errors import RecipeError
 from refspatial_gen.schema import Field, check_section
@@ -38,9 +39,11 @@ from refspatial_gen.yamlpos import line_of
 SPLITS = ("train", "val", "test", "unseen")
 DEFAULT_FRACTIONS = {"train": 0.8, "val": 0.1, "test": 0.1}
 DEFAULT_SALT = "refspatial-gen"
-RULE = ("scenes sharing a sample form a group; a group with a held-out category or (category, relation) "
-        "goes to unseen; the others are ordered by sha256(salt NUL group) and cut by the fractions "
-        "(largest remainder)")
+RULE = (
+    "scenes sharing a sample form a group; a group with a held-out category or (category, relation) "
+    "goes to unseen; the others are ordered by sha256(salt NUL group) and cut by the fractions "
+    "(largest remainder)"
+)
 
 SPLIT_FIELDS = {
     "fractions": Field(dict, default=None, doc="share of scenes per split: train, val, test"),
@@ -55,7 +58,11 @@ COMBO_FIELDS = {"category": Field(str, required=True), "relation": Field(str, re
 
 
 def default_config() -> dict[str, Any]:
-    return {"fractions": dict(DEFAULT_FRACTIONS), "salt": DEFAULT_SALT, "unseen": {"categories": [], "combinations": []}}
+    return {
+        "fractions": dict(DEFAULT_FRACTIONS),
+        "salt": DEFAULT_SALT,
+        "unseen": {"categories": [], "combinations": []},
+    }
 
 
 def check_splits(data: Any, file: str, lines: dict, errors: list[RecipeError]) -> dict[str, Any]:
@@ -80,8 +87,13 @@ def check_splits(data: Any, file: str, lines: dict, errors: list[RecipeError]) -
     cats = []
     for i, c in enumerate(un["categories"] or []):
         if not isinstance(c, str) or not c.strip():
-            errors.append(RecipeError(file, line_of(lines, ("splits", "unseen", "categories", i)),
-                                      f"splits.unseen.categories[{i}] must be a category name, got {c!r}"))
+            errors.append(
+                RecipeError(
+                    file,
+                    line_of(lines, ("splits", "unseen", "categories", i)),
+                    f"splits.unseen.categories[{i}] must be a category name, got {c!r}",
+                )
+            )
         else:
             cats.append(c.strip())
     known = _relation_ids()
@@ -90,12 +102,19 @@ def check_splits(data: Any, file: str, lines: dict, errors: list[RecipeError]) -
         path = ("splits", "unseen", "combinations", i)
         d = check_section(c, COMBO_FIELDS, file, lines, path, errors)
         if d["relation"] is not None and d["relation"] not in known:
-            errors.append(RecipeError(file, line_of(lines, path + ("relation",)),
-                                      f"unknown relation {d['relation']!r} (see `refspatial-gen relations`)"))
+            errors.append(
+                RecipeError(
+                    file,
+                    line_of(lines, path + ("relation",)),
+                    f"unknown relation {d['relation']!r} (see `refspatial-gen relations`)",
+                )
+            )
         elif d["category"] is not None and d["relation"] is not None:
             combos.append({"category": d["category"], "relation": d["relation"]})
-    cfg["unseen"] = {"categories": sorted(set(cats)),
-                     "combinations": sorted({(c["category"], c["relation"]) for c in combos})}
+    cfg["unseen"] = {
+        "categories": sorted(set(cats)),
+        "combinations": sorted({(c["category"], c["relation"]) for c in combos}),
+    }
     cfg["unseen"]["combinations"] = [{"category": a, "relation": b} for a, b in cfg["unseen"]["combinations"]]
     return cfg
 
@@ -172,28 +191,34 @@ def assign(keys: Iterable[dict], cfg: dict) -> dict[str, Any]:
             unseen_groups.add(g)
             unseen_reasons.setdefault(h, set()).add(g)
     salt = cfg["salt"]
-    rest = sorted((g for g in groups if g not in unseen_groups),
-                  key=lambda g: (hashlib.sha256(f"{salt}\0{g}".encode()).hexdigest(), g))
+    rest = sorted(
+        (g for g in groups if g not in unseen_groups),
+        key=lambda g: (hashlib.sha256(f"{salt}\0{g}".encode()).hexdigest(), g),
+    )
     names = ("test", "val", "train")
     fr = cfg["fractions"]
     counts = split_by_weight(len(rest), [fr["test"], fr["val"], fr["train"]]) if rest else [0, 0, 0]
     split_of_group = {g: "unseen" for g in unseen_groups}
     pos = 0
     for name, n in zip(names, counts):
-        for g in rest[pos:pos + n]:
+        for g in rest[pos : pos + n]:
             split_of_group[g] = name
         pos += n
     scene_split = {s: split_of_group[g] for g, members in groups.items() for s in members}
     totals = {name: {"scenes": 0, "samples": 0, "qa_pairs": 0} for name in SPLITS}
-    for s, name in scene_split.items():
+    for name in scene_split.values():
         totals[name]["scenes"] += 1
     for k in keys:
         name = scene_split[k["scenes"][0]]
         totals[name]["samples"] += 1
         totals[name]["qa_pairs"] += k["qa_pairs"]
-    return {"rule": RULE, "config": cfg, "counts": totals,
-            "unseen_reasons": {h: len(gs) for h, gs in sorted(unseen_reasons.items())},
-            "scenes": {name: sorted(s for s, n in scene_split.items() if n == name) for name in SPLITS}}
+    return {
+        "rule": RULE,
+        "config": cfg,
+        "counts": totals,
+        "unseen_reasons": {h: len(gs) for h, gs in sorted(unseen_reasons.items())},
+        "scenes": {name: sorted(s for s, n in scene_split.items() if n == name) for name in SPLITS},
+    }
 
 
 def index_section(recipe, out_dir: Path, shards: list[dict]) -> dict[str, Any]:
@@ -201,8 +226,11 @@ def index_section(recipe, out_dir: Path, shards: list[dict]) -> dict[str, Any]:
     from refspatial_gen.shards.reader import read_sample_meta
 
     cfg = getattr(recipe, "splits", None) or default_config()
-    keys = [sample_keys(m, cfg) for s in sorted(shards, key=lambda s: s["name"])
-            for m in read_sample_meta(Path(out_dir) / s["name"])]
+    keys = [
+        sample_keys(m, cfg)
+        for s in sorted(shards, key=lambda s: s["name"])
+        for m in read_sample_meta(Path(out_dir) / s["name"])
+    ]
     return {"splits": assign(keys, cfg)}
 
 

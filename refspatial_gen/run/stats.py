@@ -11,9 +11,19 @@ HEATMAP_BINS = 20
 
 
 def empty_stats() -> dict[str, Any]:
-    return {"units": 0, "samples": 0, "qa_pairs": 0, "by_relation": {}, "by_family": {}, "by_steps": {},
-            "by_source": {}, "samples_by_source": {}, "dropped": {}, "truth": {},
-            "answer_heatmap": [[0] * HEATMAP_BINS for _ in range(HEATMAP_BINS)]}
+    return {
+        "units": 0,
+        "samples": 0,
+        "qa_pairs": 0,
+        "by_relation": {},
+        "by_family": {},
+        "by_steps": {},
+        "by_source": {},
+        "samples_by_source": {},
+        "dropped": {},
+        "truth": {},
+        "answer_heatmap": [[0] * HEATMAP_BINS for _ in range(HEATMAP_BINS)],
+    }
 
 
 def _points(answer_struct: dict) -> list:
@@ -30,8 +40,11 @@ def truth_counts(sample: Sample) -> dict[str, int]:
     builder records objects it withheld from questions in `graph.meta["truth"]`, and the QA stage records
     rejected questions in `sample.meta["truth"]`; each is a {reason: count} dict."""
     out: Counter = Counter()
-    for d in [f.meta.get("truth") for f in sample.frames] + [g.meta.get("truth") for g in sample.graphs] \
-            + [sample.meta.get("truth")]:
+    for d in (
+        [f.meta.get("truth") for f in sample.frames]
+        + [g.meta.get("truth") for g in sample.graphs]
+        + [sample.meta.get("truth")]
+    ):
         out.update(d or {})
     return dict(out)
 

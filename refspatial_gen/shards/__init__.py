@@ -12,6 +12,16 @@ from refspatial_gen.shards.reader import ShardError, iter_raw, read_sample_meta,
 from refspatial_gen.shards.writer import PARTIAL_SUFFIX, ShardInfo, ShardWriter, part_name, sha256_file
 
 __all__ = [
-    "PARTIAL_SUFFIX", "ShardError", "ShardInfo", "ShardWriter", "iter_raw", "part_name", "read_index",
-    "read_sample_meta", "read_samples", "sha256_file", "shard_paths", "write_index",
+    "PARTIAL_SUFFIX",
+    "ShardError",
+    "ShardInfo",
+    "ShardWriter",
+    "iter_raw",
+    "part_name",
+    "read_index",
+    "read_sample_meta",
+    "read_samples",
+    "sha256_file",
+    "shard_paths",
+    "write_index",
 ]

@@ -74,7 +74,8 @@ def stream_vs_webdataset(shard_dir: Path | str, *, repeats: int = 3, work_dir: P
 
     def theirs_full() -> int:
         ds = wds.WebDataset(tars, shardshuffle=False, empty_check=False).decode(
-            wds.handle_extension("rgb0.jpg rgb0.png", decode_image))
+            wds.handle_extension("rgb0.jpg rgb0.png", decode_image)
+        )
         n = 0
         for rec in ds:
             rgb, depth, qa = rec.get("rgb0.jpg", rec.get("rgb0.png")), rec["depth0.npy"], rec["json"]["qa"]
@@ -169,8 +170,14 @@ def _reader(fmt: str, shard_dir: Path, out: Path | None):
         import webdataset as wds
 
         tars = [str(out / t) for t in json.loads((out / "manifest.json").read_text())["tars"]]
-        return lambda: sum(_ok(decode_image(r.get("rgb0.jpg", r.get("rgb0.png"))), np.load(io.BytesIO(r["depth0.npy"])),
-                               json.loads(r["json"])["qa"]) for r in wds.WebDataset(tars, shardshuffle=False, empty_check=False))
+        return lambda: sum(
+            _ok(
+                decode_image(r.get("rgb0.jpg", r.get("rgb0.png"))),
+                np.load(io.BytesIO(r["depth0.npy"])),
+                json.loads(r["json"])["qa"],
+            )
+            for r in wds.WebDataset(tars, shardshuffle=False, empty_check=False)
+        )
     if fmt in ("hf", "hf_streaming"):
         ds = _hf_dataset(out, fmt == "hf_streaming")
         return lambda: _hf_rows(ds)
@@ -181,15 +188,22 @@ def _reader(fmt: str, shard_dir: Path, out: Path | None):
             ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, configure_logging=False)
         return lambda: _hf_rows(ray.data.read_parquet(str(out / "data")).iter_rows())
     if fmt == "refspatial":
+
         def read() -> int:
-            recs = [(r["image"][0], r["depth"][0], r["conversations"][::2]) for f in sorted(out.glob("*.json"))
-                    for r in json.loads(f.read_text())]
+            recs = [
+                (r["image"][0], r["depth"][0], r["conversations"][::2])
+                for f in sorted(out.glob("*.json"))
+                for r in json.loads(f.read_text())
+            ]
             return _file_samples(out, recs)
+
         return read
     if fmt == "jsonl":
+
         def read_jsonl() -> int:
             lines = [json.loads(x) for x in (out / "qa.jsonl").read_text().splitlines()]
             return _file_samples(out, [(x["image"][0], None, [x]) for x in lines if "_marks" not in x["image"][0]])
+
         return read_jsonl
     raise ValueError(f"unknown format {fmt!r}")
 
@@ -198,7 +212,9 @@ def _export_dir(fmt: str) -> str | None:
     return {"mcap_stream": None, "hf_streaming": "hf", "ray": "hf"}.get(fmt, fmt)
 
 
-def format_throughput(shard_dir: Path | str, *, formats=FORMATS, repeats: int = 3, work_dir: Path | str | None = None) -> dict:
+def format_throughput(
+    shard_dir: Path | str, *, formats=FORMATS, repeats: int = 3, work_dir: Path | str | None = None
+) -> dict:
     """Read throughput of every format on the same samples: {format: {samples_per_s, mb_per_s, ratio}}.
 
     Each format is exported from `shard_dir`, then read by its own library doing the same work per
@@ -222,8 +238,11 @@ def format_throughput(shard_dir: Path | str, *, formats=FORMATS, repeats: int = 
                 if sub is not None and sub not in made:
                     made[sub] = work / sub
                     export(shard_dir, sub, made[sub], overwrite=True)
-                files = shard_paths(shard_dir) if sub is None else [p for p in made[sub].rglob("*") if p.is_file()
-                                                                     and "hf-cache" not in p.parts]
+                files = (
+                    shard_paths(shard_dir)
+                    if sub is None
+                    else [p for p in made[sub].rglob("*") if p.is_file() and "hf-cache" not in p.parts]
+                )
                 fn = _reader(fmt, shard_dir, made.get(sub))
             except ImportError as e:
                 out[fmt] = {"skipped": f"needs {e.name}"}
@@ -232,8 +251,11 @@ def format_throughput(shard_dir: Path | str, *, formats=FORMATS, repeats: int = 
             t, n = _time(fn, repeats)
             if n != expected:
                 raise RuntimeError(f"{fmt}: read {n} samples, expected {expected}")
-            out[fmt] = {"samples_per_s": round(n / t, 1), "mb_per_s": round(_dir_bytes(files) / t / 1e6, 1),
-                        "mb": round(_dir_bytes(files) / 1e6, 2)}
+            out[fmt] = {
+                "samples_per_s": round(n / t, 1),
+                "mb_per_s": round(_dir_bytes(files) / t / 1e6, 1),
+                "mb": round(_dir_bytes(files) / 1e6, 2),
+            }
     finally:
         if "ray" in sys.modules and sys.modules["ray"].is_initialized():
             sys.modules["ray"].shutdown()

@@ -16,8 +16,8 @@ import importlib
 import inspect
 import os
 import shutil
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Callable, Iterator
 
 from refspatial_gen.shards.export_files import ExportError
 from refspatial_gen.shards.format import RawSample
@@ -105,8 +105,9 @@ def _land(tmp: Path, out: Path) -> None:
         shutil.rmtree(old, ignore_errors=True)
 
 
-def export(shard_dir: Path | str, fmt: str, out: Path | str, *, overwrite: bool = False, check: bool = True,
-           **options) -> dict:
+def export(
+    shard_dir: Path | str, fmt: str, out: Path | str, *, overwrite: bool = False, check: bool = True, **options
+) -> dict:
     """Export `shard_dir` as `fmt` into the folder `out` (created; see the module docstring).
 
     The exporter's own `check_export` (when its module has one) runs on the finished folder before it
@@ -118,8 +119,10 @@ def export(shard_dir: Path | str, fmt: str, out: Path | str, *, overwrite: bool 
     out = Path(out)
     here, there = src.shard_dir.resolve(), out.resolve()
     if there == here or there in here.parents or there == Path.cwd().resolve() or there.parent == there:
-        raise ExportError(f"{out}: refusing to export into the shard folder, a folder containing it, the current "
-                          f"folder or the file system root (--overwrite would replace it)")
+        raise ExportError(
+            f"{out}: refusing to export into the shard folder, a folder containing it, the current "
+            f"folder or the file system root (--overwrite would replace it)"
+        )
     tmp = _prepare(out, overwrite)
     try:
         res = fn(src, tmp, **kw)

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import hashlib
 import re
+from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import Callable, Iterable
 
 EXT = {"jpeg": "jpg", "png": "png"}
 _SAFE = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,99}")
@@ -97,8 +97,9 @@ def stored_image_hashes(raws: Iterable, on_view: Callable | None = None) -> dict
     return out
 
 
-def check_image_refs(out_dir: Path, refs: Iterable[str], stored: dict[str, tuple[str, tuple[str, int]]],
-                     where: str) -> list[str]:
+def check_image_refs(
+    out_dir: Path, refs: Iterable[str], stored: dict[str, tuple[str, tuple[str, int]]], where: str
+) -> list[str]:
     """Problems with image references: a plain view image must hold exactly the stored bytes; a marked
     copy (`..._marks<k>.png`) must exist and belong to a stored view."""
     problems: list[str] = []
@@ -123,6 +124,8 @@ def check_image_refs(out_dir: Path, refs: Iterable[str], stored: dict[str, tuple
         elif got is None:
             problems.append(f"{where}: image {name} missing")
         elif got != want[0]:
-            problems.append(f"{where}: image {name} differs from the stored view {want[1]} (sha256 {got[:12]}... "
-                            f"!= {want[0][:12]}...)")
+            problems.append(
+                f"{where}: image {name} differs from the stored view {want[1]} (sha256 {got[:12]}... "
+                f"!= {want[0][:12]}...)"
+            )
     return problems

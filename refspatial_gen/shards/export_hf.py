@@ -15,8 +15,8 @@ writer settings so the same shards give the same bytes.
 from __future__ import annotations
 
 import io
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Iterable
 
 import numpy as np
 
@@ -57,11 +57,17 @@ def _card(features, n: int, files: list[str], size: int) -> str:
     """A minimal dataset card: YAML `dataset_info` with the features and the data files of the split."""
     import yaml
 
-    info = {"configs": [{"config_name": "default", "data_files": [{"split": "train", "path": "data/train-*.parquet"}]}],
-            "dataset_info": {"features": features._to_yaml_list(),
-                             "splits": [{"name": "train", "num_examples": n, "num_bytes": size}]}}
-    return "---\n" + yaml.safe_dump(info, sort_keys=True) + "---\n\nExported by refspatial-gen (`export --format hf`): " \
+    info = {
+        "configs": [{"config_name": "default", "data_files": [{"split": "train", "path": "data/train-*.parquet"}]}],
+        "dataset_info": {
+            "features": features._to_yaml_list(),
+            "splits": [{"name": "train", "num_examples": n, "num_bytes": size}],
+        },
+    }
+    return (
+        "---\n" + yaml.safe_dump(info, sort_keys=True) + "---\n\nExported by refspatial-gen (`export --format hf`): "
         f"{n} samples in {len(files)} Parquet files.\n"
+    )
 
 
 def export_hf(raws: Iterable[RawSample], out: Path | str, *, samples_per_shard: int | None = None) -> dict:
@@ -102,8 +108,12 @@ def check_export(out: Path, raws: Iterable[RawSample]) -> list[str]:
 
     out = Path(out)
     depth_want: dict[tuple[str, int], str] = {}
-    stored = stored_image_hashes(raws, lambda raw, stem, v: depth_want.__setitem__(
-        (raw.header["sample_id"], v), sha256(np.ascontiguousarray(raw.depth(v), "<f4").tobytes())))
+    stored = stored_image_hashes(
+        raws,
+        lambda raw, stem, v: depth_want.__setitem__(
+            (raw.header["sample_id"], v), sha256(np.ascontiguousarray(raw.depth(v), "<f4").tobytes())
+        ),
+    )
     want_rgb = {sv: h for h, sv in stored.values()}
     problems, seen = [], set()
     for f in sorted((out / "data").glob("*.parquet")):
@@ -130,4 +140,3 @@ def _decode_depth(data: bytes) -> np.ndarray:
     from PIL import Image
 
     return np.asarray(Image.open(io.BytesIO(data)), dtype=np.float32)
-

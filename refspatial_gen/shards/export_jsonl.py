@@ -10,16 +10,35 @@ since its question is about the drawn labels.
 from __future__ import annotations
 
 import json
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Iterable
 
-from refspatial_gen.shards.export_files import EXT, StemRegistry, check_image_refs, stored_image_hashes, view_name, write_new
+from refspatial_gen.shards.export_files import (
+    EXT,
+    StemRegistry,
+    check_image_refs,
+    stored_image_hashes,
+    view_name,
+    write_new,
+)
 from refspatial_gen.shards.export_refspatial import marked_name
 from refspatial_gen.shards.format import RawSample
 from refspatial_gen.shards.marks import marked_pngs
 
-_FIELDS = ("family", "template", "question", "answer", "answer_struct", "steps", "relations", "trace",
-           "key_steps", "targets", "image_size", "checks")
+_FIELDS = (
+    "family",
+    "template",
+    "question",
+    "answer",
+    "answer_struct",
+    "steps",
+    "relations",
+    "trace",
+    "key_steps",
+    "targets",
+    "image_size",
+    "checks",
+)
 
 
 def export_jsonl(raws: Iterable[RawSample], out: Path | str, *, images: bool = True) -> dict:
@@ -48,8 +67,12 @@ def export_jsonl(raws: Iterable[RawSample], out: Path | str, *, images: bool = T
                         write_new(out / "image" / mname, png)
                     if v in vs:
                         refs[vs.index(v)] = mname
-                line = {"id": qa["qa_id"], "sample_id": h["sample_id"], "image": refs,
-                        **{k: qa.get(k) for k in _FIELDS}}
+                line = {
+                    "id": qa["qa_id"],
+                    "sample_id": h["sample_id"],
+                    "image": refs,
+                    **{k: qa.get(k) for k in _FIELDS},
+                }
                 f.write(json.dumps(line, ensure_ascii=False, sort_keys=True) + "\n")
                 n += 1
             m += 1

@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Iterable
 
 import numpy as np
 
@@ -63,7 +63,9 @@ def inverse_depth_png(depth: np.ndarray) -> bytes:
     return buf.tobytes()
 
 
-def export_sample(raw: RawSample, out: Path, with_depth: bool = True, stems: StemRegistry | None = None) -> dict[str, list[dict]]:
+def export_sample(
+    raw: RawSample, out: Path, with_depth: bool = True, stems: StemRegistry | None = None
+) -> dict[str, list[dict]]:
     """Write one sample's images (each file created once: a collision raises) and return its records by family."""
     h = raw.header
     base = (stems or StemRegistry()).claim(h["sample_id"])
@@ -92,8 +94,15 @@ def export_sample(raw: RawSample, out: Path, with_depth: bool = True, stems: Ste
                     names[vs.index(v)] = mname
         for start in range(0, len(items), MAX_PAIRS):
             records.setdefault(family, []).append(
-                _record(f"{base}:{family}:{items[start][0]}", names, [view_name(base, v, "png") for v in vs],
-                        items[start:start + MAX_PAIRS], with_depth, reasoning))
+                _record(
+                    f"{base}:{family}:{items[start][0]}",
+                    names,
+                    [view_name(base, v, "png") for v in vs],
+                    items[start : start + MAX_PAIRS],
+                    with_depth,
+                    reasoning,
+                )
+            )
     return records
 
 
@@ -102,8 +111,9 @@ def marked_name(stem: str, view: int, qa_index: int) -> str:
     return f"{stem}_v{view}_marks{qa_index}.png"
 
 
-def _record(rid: str, images: list[str], depths: list[str], chunk: list[tuple[int, dict]], with_depth: bool,
-            reasoning: bool) -> dict:
+def _record(
+    rid: str, images: list[str], depths: list[str], chunk: list[tuple[int, dict]], with_depth: bool, reasoning: bool
+) -> dict:
     conv = []
     for _, qa in chunk:
         conv.append({"from": "human", "value": strip_tokens(qa["question"])})
@@ -112,8 +122,16 @@ def _record(rid: str, images: list[str], depths: list[str], chunk: list[tuple[in
     if with_depth:
         rec["depth"] = depths
     if reasoning:
-        rec["think"] = [{"question_type": qa["family"], "template": qa["template"], "trace": qa["trace"],
-                         "key_steps": qa.get("key_steps", []), "image_size": qa["image_size"]} for _, qa in chunk]
+        rec["think"] = [
+            {
+                "question_type": qa["family"],
+                "template": qa["template"],
+                "trace": qa["trace"],
+                "key_steps": qa.get("key_steps", []),
+                "image_size": qa["image_size"],
+            }
+            for _, qa in chunk
+        ]
     return rec
 
 
@@ -131,9 +149,14 @@ def export_refspatial(raws: Iterable[RawSample], out: Path | str, *, with_depth:
             by_family.setdefault(fam, []).extend(recs)
             n_qa += sum(len(r["conversations"]) // 2 for r in recs)
     for fam, recs in sorted(by_family.items()):
-        write_new(out / f"{safe_name(fam)}.json", json.dumps(recs, ensure_ascii=False, indent=1, sort_keys=True).encode())
-    return {"records": {f: len(r) for f, r in sorted(by_family.items())}, "qa_pairs": n_qa,
-            "images": len(list((out / "image").iterdir()))}
+        write_new(
+            out / f"{safe_name(fam)}.json", json.dumps(recs, ensure_ascii=False, indent=1, sort_keys=True).encode()
+        )
+    return {
+        "records": {f: len(r) for f, r in sorted(by_family.items())},
+        "qa_pairs": n_qa,
+        "images": len(list((out / "image").iterdir())),
+    }
 
 
 def check_export(out: Path, raws: Iterable[RawSample]) -> list[str]:

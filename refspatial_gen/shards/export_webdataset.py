@@ -17,8 +17,8 @@ import io
 import json
 import math
 import tarfile
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Iterable
 
 import numpy as np
 
@@ -85,18 +85,26 @@ def export_webdataset(raws: Iterable[RawSample], out: Path | str, *, samples_per
     finally:
         if tar is not None:
             tar.close()
-    (out / "manifest.json").write_text(json.dumps({"tars": [t["name"] for t in tars], "samples": n,
-                                                   "samples_per_tar": [t["samples"] for t in tars]}, sort_keys=True))
-    return {"tars": [t["name"] for t in tars], "samples": n,
-            "bytes": sum((out / t["name"]).stat().st_size for t in tars)}
+    (out / "manifest.json").write_text(
+        json.dumps(
+            {"tars": [t["name"] for t in tars], "samples": n, "samples_per_tar": [t["samples"] for t in tars]},
+            sort_keys=True,
+        )
+    )
+    return {
+        "tars": [t["name"] for t in tars],
+        "samples": n,
+        "bytes": sum((out / t["name"]).stat().st_size for t in tars),
+    }
 
 
 def check_export(out: Path, raws: Iterable[RawSample]) -> list[str]:
     """Every sample is in the tars once, with the stored image bytes and depth of each of its views."""
     out = Path(out)
     depth_want: dict[tuple[str, int], str] = {}
-    stored = stored_image_hashes(raws, lambda raw, stem, v: depth_want.__setitem__(
-        (raw.header["sample_id"], v), sha256(npy_bytes(raw.depth(v)))))
+    stored = stored_image_hashes(
+        raws, lambda raw, stem, v: depth_want.__setitem__((raw.header["sample_id"], v), sha256(npy_bytes(raw.depth(v))))
+    )
     want_rgb = {sv: h for h, sv in stored.values()}
     groups: dict[str, dict[str, bytes]] = {}
     problems: list[str] = []

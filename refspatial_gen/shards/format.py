@@ -18,8 +18,9 @@ log_time = publish_time = (sequence + 1) seconds: derived from the sequence, nev
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -33,9 +34,18 @@ JSON_SCHEMA = "jsonschema"
 
 # Colours for the 3D boxes (RGBA 0..1) by colour attribute; unknown colours are grey.
 _BOX_RGBA = {
-    "red": (0.85, 0.15, 0.15), "green": (0.15, 0.65, 0.25), "blue": (0.15, 0.3, 0.85), "yellow": (0.9, 0.8, 0.15),
-    "white": (0.92, 0.92, 0.92), "black": (0.12, 0.12, 0.12), "orange": (0.95, 0.5, 0.1), "purple": (0.5, 0.25, 0.7),
-    "brown": (0.5, 0.33, 0.18), "gray": (0.5, 0.5, 0.5), "grey": (0.5, 0.5, 0.5), "pink": (0.95, 0.55, 0.7),
+    "red": (0.85, 0.15, 0.15),
+    "green": (0.15, 0.65, 0.25),
+    "blue": (0.15, 0.3, 0.85),
+    "yellow": (0.9, 0.8, 0.15),
+    "white": (0.92, 0.92, 0.92),
+    "black": (0.12, 0.12, 0.12),
+    "orange": (0.95, 0.5, 0.1),
+    "purple": (0.5, 0.25, 0.7),
+    "brown": (0.5, 0.33, 0.18),
+    "gray": (0.5, 0.5, 0.5),
+    "grey": (0.5, 0.5, 0.5),
+    "pink": (0.95, 0.55, 0.7),
 }
 
 
@@ -47,9 +57,13 @@ def _pb():
     from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
     from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 
-    return {"foxglove.CompressedImage": CompressedImage, "foxglove.RawImage": RawImage,
-            "foxglove.CameraCalibration": CameraCalibration, "foxglove.FrameTransform": FrameTransform,
-            "foxglove.SceneUpdate": SceneUpdate}
+    return {
+        "foxglove.CompressedImage": CompressedImage,
+        "foxglove.RawImage": RawImage,
+        "foxglove.CameraCalibration": CameraCalibration,
+        "foxglove.FrameTransform": FrameTransform,
+        "foxglove.SceneUpdate": SceneUpdate,
+    }
 
 
 def protobuf_schema_data(schema_name: str) -> bytes:
@@ -80,12 +94,18 @@ def topic_schema(topic: str) -> tuple[str, str]:
     """(schema name, schema encoding) of a topic."""
     if topic.startswith("/cam"):
         kind = topic.rsplit("/", 1)[1]
-        name = {"image": "foxglove.CompressedImage", "depth": "foxglove.RawImage",
-                "calibration": "foxglove.CameraCalibration", "tf": "foxglove.FrameTransform",
-                "boxes": "foxglove.SceneUpdate", "frame": "refspatial.FrameMeta"}[kind]
+        name = {
+            "image": "foxglove.CompressedImage",
+            "depth": "foxglove.RawImage",
+            "calibration": "foxglove.CameraCalibration",
+            "tf": "foxglove.FrameTransform",
+            "boxes": "foxglove.SceneUpdate",
+            "frame": "refspatial.FrameMeta",
+        }[kind]
     else:
-        name = {"/sample": "refspatial.SampleHeader", "/graphs": "refspatial.SceneGraphs",
-                "/qa": "refspatial.QAPairs"}[topic]
+        name = {"/sample": "refspatial.SampleHeader", "/graphs": "refspatial.SceneGraphs", "/qa": "refspatial.QAPairs"}[
+            topic
+        ]
     return name, ("protobuf" if name.startswith("foxglove.") else JSON_SCHEMA)
 
 
@@ -141,7 +161,13 @@ def _view_messages(v: int, frame: Frame, t_ns: int, image_format: str, scene: st
     dep = pb["foxglove.RawImage"]()
     _stamp(dep, t_ns)
     depth = np.ascontiguousarray(frame.depth, dtype="<f4")
-    dep.frame_id, dep.width, dep.height, dep.encoding, dep.step = fid, depth.shape[1], depth.shape[0], "32FC1", depth.shape[1] * 4
+    dep.frame_id, dep.width, dep.height, dep.encoding, dep.step = (
+        fid,
+        depth.shape[1],
+        depth.shape[0],
+        "32FC1",
+        depth.shape[1] * 4,
+    )
     dep.data = depth.tobytes()
 
     cal = pb["foxglove.CameraCalibration"]()
@@ -160,8 +186,14 @@ def _view_messages(v: int, frame: Frame, t_ns: int, image_format: str, scene: st
     tf.rotation.x, tf.rotation.y, tf.rotation.z, tf.rotation.w = _quat(T[:3, :3])
 
     su = _scene_update(frame, fid, t_ns, scene)
-    return [(f"/{fid}/image", _ser(img)), (f"/{fid}/depth", _ser(dep)), (f"/{fid}/calibration", _ser(cal)),
-            (f"/{fid}/tf", _ser(tf)), (f"/{fid}/boxes", _ser(su)), (f"/{fid}/frame", dumps(frame.meta_json()))]
+    return [
+        (f"/{fid}/image", _ser(img)),
+        (f"/{fid}/depth", _ser(dep)),
+        (f"/{fid}/calibration", _ser(cal)),
+        (f"/{fid}/tf", _ser(tf)),
+        (f"/{fid}/boxes", _ser(su)),
+        (f"/{fid}/frame", dumps(frame.meta_json())),
+    ]
 
 
 def _scene_update(frame: Frame, fid: str, t_ns: int, scene: str):
@@ -208,9 +240,15 @@ def encode_sample(sample: Sample, seq: int, image_format: str = "jpeg") -> list[
     body.append(("/graphs", dumps({"graphs": [g.to_json() for g in sample.graphs]})))
     body.append(("/qa", dumps({"qa": [q.to_json() for q in sample.qa]})))
     header = {
-        "schema_version": SCHEMA_VERSION, "sample_id": sample.sample_id, "unit_key": sample.unit_key,
-        "meta": sample.meta, "views": len(sample.frames), "frame_ids": [f.frame_id for f in sample.frames],
-        "qa_pairs": len(sample.qa), "image_format": image_format, "n_messages": len(body) + 1,
+        "schema_version": SCHEMA_VERSION,
+        "sample_id": sample.sample_id,
+        "unit_key": sample.unit_key,
+        "meta": sample.meta,
+        "views": len(sample.frames),
+        "frame_ids": [f.frame_id for f in sample.frames],
+        "qa_pairs": len(sample.qa),
+        "image_format": image_format,
+        "n_messages": len(body) + 1,
     }
     return [("/sample", dumps(header))] + body
 
@@ -255,22 +293,35 @@ class RawSample:
         dep = _pb()["foxglove.RawImage"]()
         dep.ParseFromString(self.messages[f"/cam{v}/depth"])
         if dep.encoding != "32FC1" or len(dep.data) != dep.width * dep.height * 4:
-            raise ValueError(f"depth of view {v} is {dep.encoding} with {len(dep.data)} bytes for {dep.width}x{dep.height}")
+            raise ValueError(
+                f"depth of view {v} is {dep.encoding} with {len(dep.data)} bytes for {dep.width}x{dep.height}"
+            )
         return np.frombuffer(dep.data, dtype="<f4").reshape(dep.height, dep.width).copy()
 
     def meta(self) -> dict:
         """Everything but pixels: header, frame metadata, graphs and QA pairs as JSON."""
         h = self.header
-        return {"seq": self.seq, "sample_id": h["sample_id"], "unit_key": h["unit_key"], "meta": h["meta"],
-                "frames": [self.frame_meta(v) for v in range(int(h["views"]))], "graphs": self.graphs_json(),
-                "qa": self.qa_json()}
+        return {
+            "seq": self.seq,
+            "sample_id": h["sample_id"],
+            "unit_key": h["unit_key"],
+            "meta": h["meta"],
+            "frames": [self.frame_meta(v) for v in range(int(h["views"]))],
+            "graphs": self.graphs_json(),
+            "qa": self.qa_json(),
+        }
 
     def decode(self) -> Sample:
         h = self.header
         frames = [Frame.from_meta_json(self.frame_meta(v), self.rgb(v), self.depth(v)) for v in range(int(h["views"]))]
-        return Sample(sample_id=h["sample_id"], frames=frames,
-                      graphs=[SceneGraph.from_json(g) for g in self.graphs_json()],
-                      qa=[QAPair.from_json(q) for q in self.qa_json()], unit_key=h["unit_key"], meta=dict(h["meta"]))
+        return Sample(
+            sample_id=h["sample_id"],
+            frames=frames,
+            graphs=[SceneGraph.from_json(g) for g in self.graphs_json()],
+            qa=[QAPair.from_json(q) for q in self.qa_json()],
+            unit_key=h["unit_key"],
+            meta=dict(h["meta"]),
+        )
 
 
 def is_complete(messages: dict[str, bytes]) -> bool:

@@ -48,10 +48,16 @@ def build_index(shards: list[dict], run_info: dict) -> dict:
         raise ValueError(f"run_info must not hold run-varying keys {bad}: put them in the run log")
     rows.sort(key=lambda r: r["name"])
     return {
-        "schema_version": SCHEMA_VERSION, "kind": "shard_index", **_sort_deep(dict(run_info)),
+        "schema_version": SCHEMA_VERSION,
+        "kind": "shard_index",
+        **_sort_deep(dict(run_info)),
         "shards": rows,
-        "totals": {"shards": len(rows), "samples": sum(int(r["samples"]) for r in rows),
-                   "qa_pairs": sum(int(r["qa_pairs"]) for r in rows), "bytes": sum(int(r["bytes"]) for r in rows)},
+        "totals": {
+            "shards": len(rows),
+            "samples": sum(int(r["samples"]) for r in rows),
+            "qa_pairs": sum(int(r["qa_pairs"]) for r in rows),
+            "bytes": sum(int(r["bytes"]) for r in rows),
+        },
     }
 
 
@@ -84,7 +90,9 @@ def read_index(out_dir: Path | str) -> dict:
     if not isinstance(d, dict) or not isinstance(d.get("shards"), list):
         raise ValueError(f"{p}: index.json has no 'shards' list")
     if d.get("schema_version") != SCHEMA_VERSION:
-        raise ValueError(f"{p}: schema_version {d.get('schema_version')!r} not supported (this code reads {SCHEMA_VERSION})")
+        raise ValueError(
+            f"{p}: schema_version {d.get('schema_version')!r} not supported (this code reads {SCHEMA_VERSION})"
+        )
     for i, s in enumerate(d["shards"]):
         if not isinstance(s, dict):
             raise ValueError(f"{p}: shards[{i}] is {type(s).__name__}, not an object")

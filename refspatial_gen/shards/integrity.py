@@ -47,8 +47,14 @@ def check_shards(out_dir: Path | str, *, deep: bool = False) -> list[dict]:
             continue
         digest = sha256_file(p)
         if digest != s.get("sha256"):
-            problems.append(_problem(p, "hash_mismatch", f"sha256 {digest[:16]}... differs from index.json's "
-                                                        f"{str(s.get('sha256'))[:16]}... (file altered or replaced)"))
+            problems.append(
+                _problem(
+                    p,
+                    "hash_mismatch",
+                    f"sha256 {digest[:16]}... differs from index.json's "
+                    f"{str(s.get('sha256'))[:16]}... (file altered or replaced)",
+                )
+            )
             continue
         note_verified(p, digest)
         if deep:
@@ -61,13 +67,23 @@ def check_shards(out_dir: Path | str, *, deep: bool = False) -> list[dict]:
                 problems.append(_problem(p, "unreadable", e.reason))
                 continue
             if (n, q) != (s.get("samples"), s.get("qa_pairs")):
-                problems.append(_problem(p, "count_mismatch", f"{n} samples / {q} QA pairs read, index.json says "
-                                                             f"{s.get('samples')} / {s.get('qa_pairs')}"))
+                problems.append(
+                    _problem(
+                        p,
+                        "count_mismatch",
+                        f"{n} samples / {q} QA pairs read, index.json says {s.get('samples')} / {s.get('qa_pairs')}",
+                    )
+                )
     problems += index_count_problems(out_dir / INDEX_NAME, index)
     for p in sorted(out_dir.glob("*" + PARTIAL_SUFFIX)):
         if p.name != INDEX_NAME + PARTIAL_SUFFIX:
-            problems.append(_problem(p, "unfinished", "a shard left unfinished by a crash; "
-                                                      "run `refspatial-gen shards salvage` on it or resume the run"))
+            problems.append(
+                _problem(
+                    p,
+                    "unfinished",
+                    "a shard left unfinished by a crash; run `refspatial-gen shards salvage` on it or resume the run",
+                )
+            )
     for p in sorted(out_dir.glob("*.mcap")):
         if p.name not in listed:
             problems.append(_problem(p, "unlisted", "shard file not listed in index.json"))
@@ -83,21 +99,29 @@ def index_count_problems(index_path: Path, index: dict) -> list[dict]:
     rows = index["shards"]
     problems = []
     try:
-        sums = {"shards": len(rows), "samples": sum(int(r["samples"]) for r in rows),
-                "qa_pairs": sum(int(r["qa_pairs"]) for r in rows), "bytes": sum(int(r["bytes"]) for r in rows)}
+        sums = {
+            "shards": len(rows),
+            "samples": sum(int(r["samples"]) for r in rows),
+            "qa_pairs": sum(int(r["qa_pairs"]) for r in rows),
+            "bytes": sum(int(r["bytes"]) for r in rows),
+        }
     except (KeyError, TypeError, ValueError) as e:
         return [_problem(index_path, "index_unreadable", f"a shard row lacks a numeric count ({e})")]
     totals = index.get("totals") or {}
     for k, v in sums.items():
         if totals.get(k) != v:
-            problems.append(_problem(index_path, "count_mismatch", f"totals.{k} is {totals.get(k)!r}, "
-                                                                   f"the shard rows add up to {v}"))
+            problems.append(
+                _problem(index_path, "count_mismatch", f"totals.{k} is {totals.get(k)!r}, the shard rows add up to {v}")
+            )
     stats = index.get("stats")
     if isinstance(stats, dict):
         for k in ("samples", "qa_pairs"):
             if k in stats and stats[k] != sums[k]:
-                problems.append(_problem(index_path, "count_mismatch", f"stats.{k} is {stats[k]!r}, "
-                                                                       f"the shard rows add up to {sums[k]}"))
+                problems.append(
+                    _problem(
+                        index_path, "count_mismatch", f"stats.{k} is {stats[k]!r}, the shard rows add up to {sums[k]}"
+                    )
+                )
     return problems
 
 
@@ -124,8 +148,11 @@ def salvage_shard(partial_path: Path | str, *, out_path: Path | str | None = Non
     if not src.is_file():
         raise ShardError(src, "no such file")
     if out_path is None:
-        out_path = src.with_name(src.name[: -len(PARTIAL_SUFFIX)]) if src.name.endswith(PARTIAL_SUFFIX) \
+        out_path = (
+            src.with_name(src.name[: -len(PARTIAL_SUFFIX)])
+            if src.name.endswith(PARTIAL_SUFFIX)
             else src.with_name(src.stem + ".salvaged.mcap")
+        )
     out_path = Path(out_path)
     if out_path.exists():
         raise ShardError(src, f"{out_path} already exists; remove it or pass another output path")

@@ -5,7 +5,8 @@ masks, so a marked copy is a pure function of stored data; storing it would doub
 
 Contract with the QA engine (answer_struct): a QA pair whose image needs marks carries
   answer_struct["marks"] = [{"label": "A", "object_id": 3, "style": "box" | "point", "view": 0}, ...]
-("view", the asked frame's position among the sample's frames, defaults to 0; "style" to "box"). Box style draws the object's 2D box (bbox2d) with its label;
+("view", the asked frame's position among the sample's frames, defaults to 0; "style" to "box").
+Box style draws the object's 2D box (bbox2d) with its label;
 point style draws a dot at the object's answer point (its graph node point, else its mask answer pixel).
 """
 
@@ -15,8 +16,16 @@ import numpy as np
 
 from refspatial_gen.core.mask import RLE, answer_pixel
 
-_PALETTE = [(230, 25, 75), (60, 180, 75), (0, 130, 200), (245, 130, 48), (145, 30, 180), (70, 240, 240),
-            (240, 50, 230), (210, 245, 60)]
+_PALETTE = [
+    (230, 25, 75),
+    (60, 180, 75),
+    (0, 130, 200),
+    (245, 130, 48),
+    (145, 30, 180),
+    (70, 240, 240),
+    (240, 50, 230),
+    (210, 245, 60),
+]
 
 
 def marks_of(qa: dict) -> list[dict]:
@@ -39,7 +48,9 @@ def draw_marks(rgb: np.ndarray, frame_meta: dict, marks: list[dict], graph: dict
     for k, m in enumerate(marks):
         oid = int(m["object_id"])
         if oid not in objects:
-            raise ValueError(f"mark {m.get('label')!r} names object {oid}, which is not in frame {frame_meta['frame_id']}")
+            raise ValueError(
+                f"mark {m.get('label')!r} names object {oid}, which is not in frame {frame_meta['frame_id']}"
+            )
         o = objects[oid]
         colour = _PALETTE[k % len(_PALETTE)]
         label = str(m.get("label", chr(ord("A") + k)))
@@ -61,7 +72,9 @@ def draw_marks(rgb: np.ndarray, frame_meta: dict, marks: list[dict], graph: dict
             x0, y0, x1, y1 = (int(round(v)) for v in o["bbox2d"])
             cv2.rectangle(img, (x0, y0), (x1 - 1, y1 - 1), colour, thick, cv2.LINE_AA)
             org = (max(0, x0 + 2), max(12, y0 - 3) if y0 > 14 else y0 + int(14 * scale))
-        cv2.putText(img, label, org, cv2.FONT_HERSHEY_SIMPLEX, 0.5 * scale * 1.4, (255, 255, 255), thick + 2, cv2.LINE_AA)
+        cv2.putText(
+            img, label, org, cv2.FONT_HERSHEY_SIMPLEX, 0.5 * scale * 1.4, (255, 255, 255), thick + 2, cv2.LINE_AA
+        )
         cv2.putText(img, label, org, cv2.FONT_HERSHEY_SIMPLEX, 0.5 * scale * 1.4, colour, thick, cv2.LINE_AA)
     return img
 

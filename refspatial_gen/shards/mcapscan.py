@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import mmap
 import struct
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Iterator
 
 try:  # the same CRC-32 as zlib, about 5x faster (ISA-L): checking every CRC costs little next to zstd
     from isal.isal_zlib import crc32
@@ -51,7 +51,7 @@ class _Zstd:
 def _channel_topic(buf, off: int) -> tuple[int, str]:
     cid = _U16.unpack_from(buf, off)[0]
     n = _U32.unpack_from(buf, off + 4)[0]
-    return cid, bytes(buf[off + 8: off + 8 + n]).decode("utf-8")
+    return cid, bytes(buf[off + 8 : off + 8 + n]).decode("utf-8")
 
 
 def _inner(data: bytes, channels: dict[int, str]) -> Iterator[tuple[str, int, bytes]]:
@@ -68,7 +68,7 @@ def _inner(data: bytes, channels: dict[int, str]) -> Iterator[tuple[str, int, by
             topic = channels.get(cid)
             if topic is None:
                 raise ScanError("corrupt", f"message on unknown channel {cid}")
-            yield topic, seq, data[body + 22: body + length]
+            yield topic, seq, data[body + 22 : body + length]
         elif op == OP_CHANNEL:
             cid, topic = _channel_topic(data, body)
             channels[cid] = topic
@@ -95,8 +95,10 @@ def _scan(path: Path | str, validate_crcs: bool) -> Iterator[tuple[str, int, byt
     with open(path, "rb") as f:
         size = f.seek(0, 2)
         if size < len(MAGIC):
-            raise ScanError("not_mcap" if size == 0 or not MAGIC.startswith(_head(f, size)) else "truncated",
-                            f"{size} bytes: too short for an MCAP file")
+            raise ScanError(
+                "not_mcap" if size == 0 or not MAGIC.startswith(_head(f, size)) else "truncated",
+                f"{size} bytes: too short for an MCAP file",
+            )
         with mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as m:
             if m[:8] != MAGIC:
                 raise ScanError("not_mcap", "not an MCAP file (bad magic bytes)")
@@ -111,17 +113,19 @@ def _scan(path: Path | str, validate_crcs: bool) -> Iterator[tuple[str, int, byt
                 first = False
                 body = pos + 9
                 if body + length > size:
-                    raise ScanError("truncated" if length < (1 << 40) else "corrupt",
-                                    f"a record at byte {pos} runs past the end of the file")
+                    raise ScanError(
+                        "truncated" if length < (1 << 40) else "corrupt",
+                        f"a record at byte {pos} runs past the end of the file",
+                    )
                 if op == OP_CHUNK:
                     start, end, usize, crc = _CHUNK.unpack_from(m, body)
                     clen = _U32.unpack_from(m, body + 28)[0]
-                    comp = bytes(m[body + 32: body + 32 + clen]).decode("ascii", "replace")
+                    comp = bytes(m[body + 32 : body + 32 + clen]).decode("ascii", "replace")
                     roff = body + 32 + clen
                     rlen = _U64.unpack_from(m, roff)[0]
                     if roff + 8 + rlen > body + length:
                         raise ScanError("corrupt", f"chunk at byte {pos} is inconsistent")
-                    raw = m[roff + 8: roff + 8 + rlen]
+                    raw = m[roff + 8 : roff + 8 + rlen]
                     if comp == "zstd":
                         try:
                             data = _Zstd.decompress(raw, usize)
@@ -140,7 +144,7 @@ def _scan(path: Path | str, validate_crcs: bool) -> Iterator[tuple[str, int, byt
                     cid, topic = _channel_topic(m, body)
                     channels[cid] = topic
                 elif op == OP_MESSAGE:
-                    yield from _inner(m[pos: body + length], channels)
+                    yield from _inner(m[pos : body + length], channels)
                 elif op == OP_DATA_END:
                     if validate_crcs:
                         _check_data_crc(m, pos, _U32.unpack_from(m, body)[0] if length >= 4 else 0)
@@ -150,7 +154,7 @@ def _scan(path: Path | str, validate_crcs: bool) -> Iterator[tuple[str, int, byt
                 elif op == OP_FOOTER:
                     if validate_crcs:
                         raise ScanError("corrupt", f"footer at byte {pos} without a DataEnd record before it")
-                    if m[body + length: body + length + 8] != MAGIC:
+                    if m[body + length : body + length + 8] != MAGIC:
                         raise ScanError("truncated", "the file ends inside the closing magic bytes")
                     yield None
                     return
@@ -173,7 +177,7 @@ def _check_footer(m: mmap.mmap, size: int, after_data: int, validate_crcs: bool)
     """After DataEnd come the summary, the footer and the closing magic: find the footer from the end
     (the summary is not parsed, so damage there cannot derail the scan), check that the summary starts
     where the data section ends, and check the summary CRC."""
-    if size < 8 + FOOTER_LEN + 8 or m[size - 8: size] != MAGIC:
+    if size < 8 + FOOTER_LEN + 8 or m[size - 8 : size] != MAGIC:
         raise ScanError("truncated", "the file ends before the MCAP footer")
     fpos = size - 8 - FOOTER_LEN
     op, length = _REC.unpack_from(m, fpos)
@@ -188,7 +192,7 @@ def _check_footer(m: mmap.mmap, size: int, after_data: int, validate_crcs: bool)
             raise ScanError("corrupt", f"footer names summary start {start}, outside the file")
         view = memoryview(m)
         try:
-            got = crc32(view[lo: fpos + 9 + 16])
+            got = crc32(view[lo : fpos + 9 + 16])
         finally:
             view.release()
         if got != crc:

@@ -8,8 +8,8 @@ Every failure is a ShardError naming the file, never a library traceback.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Callable, Iterator
 
 from refspatial_gen.core.model import Sample
 from refspatial_gen.shards.format import RawSample, is_complete
@@ -23,8 +23,14 @@ class ShardError(ValueError):
         super().__init__(f"{self.path}: {reason}")
 
 
-def iter_raw(path: Path | str, *, require_footer: bool = True, validate_crcs: bool = True,
-             check_index: bool = True, keep_topic: Callable[[str], bool] | None = None) -> Iterator[RawSample]:
+def iter_raw(
+    path: Path | str,
+    *,
+    require_footer: bool = True,
+    validate_crcs: bool = True,
+    check_index: bool = True,
+    keep_topic: Callable[[str], bool] | None = None,
+) -> Iterator[RawSample]:
     """Yield each sample's messages grouped by sequence number, in file order.
 
     With `require_footer=False` (salvage), stops quietly at the first damaged record and yields only
@@ -61,7 +67,9 @@ def iter_raw(path: Path | str, *, require_footer: bool = True, validate_crcs: bo
             if not require_footer and e.kind != "not_mcap":
                 break
             hint = "; try `refspatial-gen shards salvage`" if e.kind == "truncated" else ""
-            raise ShardError(path, f"{e.kind.replace('_', ' ') if e.kind != 'not_mcap' else 'invalid'}: {e}{hint}") from None
+            raise ShardError(
+                path, f"{e.kind.replace('_', ' ') if e.kind != 'not_mcap' else 'invalid'}: {e}{hint}"
+            ) from None
         except OSError as e:
             raise ShardError(path, f"cannot read: {e.strerror or e}") from None
         if rec is None:
@@ -76,8 +84,10 @@ def iter_raw(path: Path | str, *, require_footer: bool = True, validate_crcs: bo
     if cur_seq is not None and (footer or is_complete(cur)):
         yield _finish_group(path, cur_seq, cur)
     if require_footer and not footer:
-        raise ShardError(path, "truncated: the file ends before the MCAP footer (unfinished write?); "
-                               "try `refspatial-gen shards salvage`")
+        raise ShardError(
+            path,
+            "truncated: the file ends before the MCAP footer (unfinished write?); try `refspatial-gen shards salvage`",
+        )
 
 
 def _finish_group(path: Path, seq: int, msgs: dict[str, bytes]) -> RawSample:

@@ -30,14 +30,25 @@ def qa_record(qa: dict, frame_ids: list[str]) -> dict:
     """A QA pair with fixed field types; `views` are the positions of its frames in the sample."""
     views = [frame_ids.index(f) for f in qa.get("frame_ids", []) if f in frame_ids] or [0]
     w, h = (list(qa.get("image_size") or [0, 0]) + [0, 0])[:2]
-    return {"qa_id": str(qa["qa_id"]), "family": str(qa["family"]), "template": str(qa.get("template", "")),
-            "question": str(qa["question"]), "answer": str(qa["answer"]), "steps": int(qa.get("steps", 1)),
-            "relations": [str(r) for r in qa.get("relations") or []],
-            "frame_ids": [str(f) for f in qa.get("frame_ids") or []], "views": views,
-            "image_width": int(w), "image_height": int(h), "trace": str(qa.get("trace") or ""),
-            "checks": [str(c) for c in qa.get("checks") or []], "targets": [int(t) for t in qa.get("targets") or []],
-            "answer_struct_json": _js(qa.get("answer_struct") or {}), "key_steps_json": _js(qa.get("key_steps") or []),
-            "program_json": _js(qa.get("program") or [])}
+    return {
+        "qa_id": str(qa["qa_id"]),
+        "family": str(qa["family"]),
+        "template": str(qa.get("template", "")),
+        "question": str(qa["question"]),
+        "answer": str(qa["answer"]),
+        "steps": int(qa.get("steps", 1)),
+        "relations": [str(r) for r in qa.get("relations") or []],
+        "frame_ids": [str(f) for f in qa.get("frame_ids") or []],
+        "views": views,
+        "image_width": int(w),
+        "image_height": int(h),
+        "trace": str(qa.get("trace") or ""),
+        "checks": [str(c) for c in qa.get("checks") or []],
+        "targets": [int(t) for t in qa.get("targets") or []],
+        "answer_struct_json": _js(qa.get("answer_struct") or {}),
+        "key_steps_json": _js(qa.get("key_steps") or []),
+        "program_json": _js(qa.get("program") or []),
+    }
 
 
 def conversations(qa: list[dict]) -> list[dict]:
@@ -55,12 +66,20 @@ def sample_record(raw: RawSample) -> dict:
     frame_ids = [str(f) for f in h["frame_ids"]]
     qa = raw.qa_json()
     meta = h.get("meta") or {}
-    return {"record_version": RECORD_VERSION, "sample_id": str(h["sample_id"]), "unit_key": str(h["unit_key"]),
-            "source": str(meta.get("source", "")), "views": int(h["views"]), "frame_ids": frame_ids,
-            "image_format": str(h.get("image_format", "")), "qa": [qa_record(q, frame_ids) for q in qa],
-            "conversations": conversations(qa), "meta_json": _js(meta),
-            "frames_json": _js([raw.frame_meta(v) for v in range(int(h["views"]))]),
-            "graphs_json": _js(raw.graphs_json())}
+    return {
+        "record_version": RECORD_VERSION,
+        "sample_id": str(h["sample_id"]),
+        "unit_key": str(h["unit_key"]),
+        "source": str(meta.get("source", "")),
+        "views": int(h["views"]),
+        "frame_ids": frame_ids,
+        "image_format": str(h.get("image_format", "")),
+        "qa": [qa_record(q, frame_ids) for q in qa],
+        "conversations": conversations(qa),
+        "meta_json": _js(meta),
+        "frames_json": _js([raw.frame_meta(v) for v in range(int(h["views"]))]),
+        "graphs_json": _js(raw.graphs_json()),
+    }
 
 
 def hf_features():
@@ -72,13 +91,40 @@ def hf_features():
     from datasets import Features, Image, List, Value
 
     s, i32 = Value("string"), Value("int32")
-    qa = {"qa_id": s, "family": s, "template": s, "question": s, "answer": s, "steps": i32, "relations": List(s),
-          "frame_ids": List(s), "views": List(i32), "image_width": i32, "image_height": i32, "trace": s,
-          "checks": List(s), "targets": List(Value("int64")), "answer_struct_json": s, "key_steps_json": s,
-          "program_json": s}
-    return Features({
-        "record_version": i32, "sample_id": s, "unit_key": s, "source": s, "views": i32, "frame_ids": List(s),
-        "image_format": s, "images": List(Image()), "depth": List(Image(mode="F")),
-        "conversations": List({"from": s, "value": s}), "qa": List(qa),
-        "meta_json": s, "frames_json": s, "graphs_json": s,
-    })
+    qa = {
+        "qa_id": s,
+        "family": s,
+        "template": s,
+        "question": s,
+        "answer": s,
+        "steps": i32,
+        "relations": List(s),
+        "frame_ids": List(s),
+        "views": List(i32),
+        "image_width": i32,
+        "image_height": i32,
+        "trace": s,
+        "checks": List(s),
+        "targets": List(Value("int64")),
+        "answer_struct_json": s,
+        "key_steps_json": s,
+        "program_json": s,
+    }
+    return Features(
+        {
+            "record_version": i32,
+            "sample_id": s,
+            "unit_key": s,
+            "source": s,
+            "views": i32,
+            "frame_ids": List(s),
+            "image_format": s,
+            "images": List(Image()),
+            "depth": List(Image(mode="F")),
+            "conversations": List({"from": s, "value": s}),
+            "qa": List(qa),
+            "meta_json": s,
+            "frames_json": s,
+            "graphs_json": s,
+        }
+    )

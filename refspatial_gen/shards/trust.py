@@ -87,12 +87,15 @@ def verify_against_index(path: Path | str, entry: dict | None = None) -> bool:
         if _verified.get(key) == want_sha:
             return True
     if key[2] != want_size:
-        raise IntegrityError(f"size_mismatch: {key[2]} bytes on disk, index.json says {want_size} "
-                             f"(truncated or replaced)")
+        raise IntegrityError(
+            f"size_mismatch: {key[2]} bytes on disk, index.json says {want_size} (truncated or replaced)"
+        )
     digest = sha256_file(path)
     if digest != want_sha:
-        raise IntegrityError(f"hash_mismatch: sha256 {digest[:16]}... differs from index.json's {want_sha[:16]}... "
-                             f"(file altered or replaced)")
+        raise IntegrityError(
+            f"hash_mismatch: sha256 {digest[:16]}... differs from index.json's {want_sha[:16]}... "
+            f"(file altered or replaced)"
+        )
     with _lock:
         _verified[key] = digest
     return True

@@ -84,8 +84,9 @@ class _Part:
                 data = json_schema_data(name) if enc == JSON_SCHEMA else protobuf_schema_data(name)
                 sid = self.w.register_schema(name=name, encoding=enc, data=data)
                 self.schemas[name] = sid
-            cid = self.w.register_channel(topic=topic, message_encoding="json" if enc == JSON_SCHEMA else "protobuf",
-                                          schema_id=sid)
+            cid = self.w.register_channel(
+                topic=topic, message_encoding="json" if enc == JSON_SCHEMA else "protobuf", schema_id=sid
+            )
             self.channels[topic] = cid
         return cid
 
@@ -126,8 +127,14 @@ class ShardWriter:
     than `max_bytes` still gets written (alone in its part).
     """
 
-    def __init__(self, final_path: Path, *, max_bytes: int | None = None, image_format: str = "jpeg",
-                 chunk_size: int = CHUNK_SIZE) -> None:
+    def __init__(
+        self,
+        final_path: Path,
+        *,
+        max_bytes: int | None = None,
+        image_format: str = "jpeg",
+        chunk_size: int = CHUNK_SIZE,
+    ) -> None:
         if image_format not in ("jpeg", "png"):
             raise ValueError(f"image_format must be 'jpeg' or 'png', got {image_format!r}")
         self.final_path = Path(final_path)
@@ -144,8 +151,12 @@ class ShardWriter:
             raise RuntimeError(f"{self.final_path}: write() after finish()")
         msgs = encode_sample(sample, self.seq, self.image_format)
         size = sum(len(d) + len(t) + 32 for t, d in msgs)
-        if (self._part is not None and self.max_bytes is not None and self._part.samples > 0
-                and self._part.size_estimate() + size > self.max_bytes):
+        if (
+            self._part is not None
+            and self.max_bytes is not None
+            and self._part.samples > 0
+            and self._part.size_estimate() + size > self.max_bytes
+        ):
             self._parts_done.append(self._part.close())
             self._part = None
         if self._part is None:
@@ -172,7 +183,7 @@ class ShardWriter:
             self._part = None
         self._finished = True
 
-    def __enter__(self) -> "ShardWriter":
+    def __enter__(self) -> ShardWriter:
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:

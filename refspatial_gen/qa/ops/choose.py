@@ -73,11 +73,11 @@ class Choose(Op):
     def key_steps(self, st: Step, extra: Any, env: dict[str, Any], rel: str | None, keys: KeyWriter) -> None:
         if extra is None:
             return
-        sized = rel is not None and REGISTRY[rel].key_step == "Size"
+        measure = keys.size_measure(rel) if rel is not None and REGISTRY[rel].key_step == "Size" else ""
         for i, o in enumerate(env[extra]):
             keys.pos(o, f"the object marked ({keys.letters[i]})")
-            if sized:
-                keys.size(o)
+            if measure:
+                keys.size(o, measure)
 
     def verify(self, run: Run, a: dict[str, Any], prev: Any, st: dict[str, Any]) -> Any:
         opts = list(a["options"])

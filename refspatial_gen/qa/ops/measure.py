@@ -83,7 +83,7 @@ class Measure(Op):
             targets.insert(0, next(iter(prev)) if isinstance(prev, frozenset) else prev)
         for o in targets:
             if q in ("height", "width"):
-                keys.size(o)
+                keys.size(o, q)
             elif q == "angle":
                 keys.orient(o)
             else:

@@ -5,7 +5,12 @@ open3d and the depth models load only when a frame is built.
 """
 
 from refspatial_gen.sources.image.source import (
-    CONFIG_FIELDS, ImageSource, build_frame, input_root, parse_key, unit_key,
+    CONFIG_FIELDS,
+    ImageSource,
+    build_frame,
+    input_root,
+    parse_key,
+    unit_key,
 )
 
 __all__ = ["CONFIG_FIELDS", "ImageSource", "build_frame", "input_root", "parse_key", "unit_key"]

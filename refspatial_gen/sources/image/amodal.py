@@ -43,8 +43,14 @@ def _with_z(box: Box3D, bottom: float, top: float) -> Box3D:
     return Box3D(c, s, box.rotation)
 
 
-def fit_to_box2d(box: Box3D, bbox2d: tuple[float, float, float, float], cam, max_grow: float = 3.0,
-                 border_px: float = 2.0, slack_px: float = 3.0) -> tuple[Box3D, dict]:
+def fit_to_box2d(
+    box: Box3D,
+    bbox2d: tuple[float, float, float, float],
+    cam,
+    max_grow: float = 3.0,
+    border_px: float = 2.0,
+    slack_px: float = 3.0,
+) -> tuple[Box3D, dict]:
     """Extend the box along gravity until its projection reaches the 2D box's top and bottom rows."""
     x0, y0, x1, y1 = bbox2d
     notes: dict = {}
@@ -71,8 +77,9 @@ def fit_to_box2d(box: Box3D, bbox2d: tuple[float, float, float, float], cam, max
     return (_with_z(box, bottom, top) if notes else box), notes
 
 
-def visible_fraction(part: Box3D, depth: np.ndarray, cam, margin_abs: float = 0.10, margin_rel: float = 0.03,
-                     n: int = 7) -> float:
+def visible_fraction(
+    part: Box3D, depth: np.ndarray, cam, margin_abs: float = 0.10, margin_rel: float = 0.03, n: int = 7
+) -> float:
     """Of points spread over `part`'s faces, the fraction the depth map says would be seen: the observed
     depth at their pixel is farther than the point (by a margin). Off-image and no-depth pixels hide."""
     pts = part.surface_points(n)
@@ -105,8 +112,15 @@ def _overlaps(a: Box3D, b: Box3D, slack: float) -> bool:
     return True
 
 
-def supports_below(box: Box3D, footprint_box: Box3D, support_z: list[float], others: list[tuple[Box3D, Box3D]],
-                   band: float, rest: float = 0.10, slack: float = 0.05) -> list[float]:
+def supports_below(
+    box: Box3D,
+    footprint_box: Box3D,
+    support_z: list[float],
+    others: list[tuple[Box3D, Box3D]],
+    band: float,
+    rest: float = 0.10,
+    slack: float = 0.05,
+) -> list[float]:
     """Heights the object may stand on: every support plane below its bottom, and the top of every other
     object whose footprint overlaps its own and whose top is below the object's bottom or at most `rest`
     above it (a lamp on a night stand: the stand's top can sit slightly above the lamp's lowest visible
@@ -118,8 +132,9 @@ def supports_below(box: Box3D, footprint_box: Box3D, support_z: list[float], oth
     return zs
 
 
-def complete_to_support(box: Box3D, depth: np.ndarray, cam, supports: list[float], band: float = 0.03,
-                        max_visible: float = 0.1) -> tuple[Box3D, dict]:
+def complete_to_support(
+    box: Box3D, depth: np.ndarray, cam, supports: list[float], band: float = 0.03, max_visible: float = 0.1
+) -> tuple[Box3D, dict]:
     """Lower the box to the highest support below it when the part added would be hidden in the depth
     map (behind a nearer object, off the image or without depth); see the module docstring."""
     if not supports:

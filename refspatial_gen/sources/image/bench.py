@@ -15,8 +15,9 @@ import numpy as np
 from refspatial_gen.core.errors import DropUnit
 
 
-def per_image_ms(input_path: str, config: dict[str, Any] | None = None, limit: int | None = None,
-                 return_frames: bool = False) -> dict[str, Any]:
+def per_image_ms(
+    input_path: str, config: dict[str, Any] | None = None, limit: int | None = None, return_frames: bool = False
+) -> dict[str, Any]:
     """Timing summary: {"images", "frames", "dropped", "ms_per_image" (mean, excl. depth), "median_ms",
     "p90_ms", "stages_ms" (mean per stage), "depth_ms_excluded"}; with return_frames, also "frames_list"."""
     from refspatial_gen.sources.image.annotations import load_collection
@@ -44,12 +45,16 @@ def per_image_ms(input_path: str, config: dict[str, Any] | None = None, limit: i
         for k, v in tm.items():
             stages[k] = stages.get(k, 0.0) + 1000.0 * v
     n = max(len(ids), 1)
-    out = {"images": len(ids), "frames": len(frames), "dropped": dict(sorted(dropped.items())),
-           "ms_per_image": round(float(np.mean(per)), 2) if per else None,
-           "median_ms": round(float(np.median(per)), 2) if per else None,
-           "p90_ms": round(float(np.percentile(per, 90)), 2) if per else None,
-           "stages_ms": {k: round(v / n, 2) for k, v in sorted(stages.items())},
-           "depth_ms_excluded": round(stages.get("depth", 0.0) / n, 2)}
+    out = {
+        "images": len(ids),
+        "frames": len(frames),
+        "dropped": dict(sorted(dropped.items())),
+        "ms_per_image": round(float(np.mean(per)), 2) if per else None,
+        "median_ms": round(float(np.median(per)), 2) if per else None,
+        "p90_ms": round(float(np.percentile(per, 90)), 2) if per else None,
+        "stages_ms": {k: round(v / n, 2) for k, v in sorted(stages.items())},
+        "depth_ms_excluded": round(stages.get("depth", 0.0) / n, 2),
+    }
     if return_frames:
         out["frames_list"] = frames
     return out
@@ -59,4 +64,6 @@ if __name__ == "__main__":
     import json
     import sys
 
-    print(json.dumps(per_image_ms(sys.argv[1] if len(sys.argv) > 1 else "../shared/data/coco_tiny_train2017"), indent=1))
+    print(
+        json.dumps(per_image_ms(sys.argv[1] if len(sys.argv) > 1 else "../shared/data/coco_tiny_train2017"), indent=1)
+    )

@@ -26,6 +26,7 @@ pixels of its private area at the object's depth.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -41,8 +42,9 @@ class BoxMasks:
     labels: np.ndarray | None = None  # (H, W) segment labels, 0 = no depth / depth edge
 
 
-def plane_labels(world: np.ndarray, valid: np.ndarray, support_z: list[float],
-                 walls: list[tuple[np.ndarray, float]], band: float) -> np.ndarray:
+def plane_labels(
+    world: np.ndarray, valid: np.ndarray, support_z: list[float], walls: list[tuple[np.ndarray, float]], band: float
+) -> np.ndarray:
     """(H, W) int: k+1 where the pixel lies within `band` of plane k (horizontal planes, then walls)."""
     out = np.zeros(valid.shape, np.int32)
     k = 0
@@ -65,8 +67,9 @@ def fill_small_holes(depth: np.ndarray, size: int = 5) -> np.ndarray:
     return np.where(depth > 0, depth, np.where(np.isfinite(near), near, 0.0)).astype(np.float32)
 
 
-def _attach_edges(lab: np.ndarray, depth: np.ndarray, rel_jump: float = 0.03, abs_jump: float = 0.05,
-                  rounds: int = 2) -> np.ndarray:
+def _attach_edges(
+    lab: np.ndarray, depth: np.ndarray, rel_jump: float = 0.03, abs_jump: float = 0.05, rounds: int = 2
+) -> np.ndarray:
     """Pixels on a depth jump (label 0 with depth) join the neighbouring segment whose depth they match:
     the jump lies between two surfaces, and each side's pixels belong to that side (a thin lamp stem
     against a far wall is mostly such pixels)."""
@@ -122,8 +125,16 @@ def _pixel_rect(bb: tuple[float, float, float, float], W: int, H: int) -> tuple[
     return (max(0, int(np.floor(x0))), max(0, int(np.floor(y0))), min(W, int(np.ceil(x1))), min(H, int(np.ceil(y1))))
 
 
-def _owner_map(lab: np.ndarray, depth: np.ndarray, rects: list[tuple[int, int, int, int]], min_share: float,
-               min_single: float, tie: float, min_exclusive: float, min_segment: int) -> np.ndarray:
+def _owner_map(
+    lab: np.ndarray,
+    depth: np.ndarray,
+    rects: list[tuple[int, int, int, int]],
+    min_share: float,
+    min_single: float,
+    tie: float,
+    min_exclusive: float,
+    min_segment: int,
+) -> np.ndarray:
     """(H, W) int: the box each pixel is given to (-1: none). See the module docstring."""
     H, W = lab.shape
     nb, nseg = len(rects), int(lab.max()) + 1
@@ -194,15 +205,26 @@ def _spill(lo: np.ndarray, hi: np.ndarray, bb: tuple[float, float, float, float]
     return float(max(0.0, (x0 - u.min()) / bw, (u.max() - x1) / bw, (y0 - v.min()) / bh, (v.max() - y1) / bh))
 
 
-def assign_boxes(depth: np.ndarray, world: np.ndarray, boxes: list[tuple[float, float, float, float]],
-                 support_z: list[float], walls: list[tuple[np.ndarray, float]], band: float = 0.03,
-                 min_share: float = 0.8, min_single: float = 0.5, tie: float = 0.05, min_exclusive: float = 0.1,
-                 join_gap: float = 0.25, join_rel: float = 0.5, join_px: int = 4, min_segment: int = 20,
-                 cam=None, max_spill: float = 0.15) -> BoxMasks:
+def assign_boxes(
+    depth: np.ndarray,
+    world: np.ndarray,
+    boxes: list[tuple[float, float, float, float]],
+    support_z: list[float],
+    walls: list[tuple[np.ndarray, float]],
+    band: float = 0.03,
+    min_share: float = 0.8,
+    min_single: float = 0.5,
+    tie: float = 0.05,
+    min_exclusive: float = 0.1,
+    join_gap: float = 0.25,
+    join_rel: float = 0.5,
+    join_px: int = 4,
+    min_segment: int = 20,
+    cam=None,
+    max_spill: float = 0.15,
+) -> BoxMasks:
     """Masks for box annotations `boxes` (x0, y0, x1, y1 continuous pixels) over a metric `depth`
     (0 = none) whose world points (z up) are `world` (H, W, 3). See the module docstring."""
-    import cv2
-
     H, W = depth.shape
     valid = depth > 0
     planes = plane_labels(world, valid, support_z, walls, band)
@@ -215,69 +237,114 @@ def assign_boxes(depth: np.ndarray, world: np.ndarray, boxes: list[tuple[float, 
         inner[y0:y1, x0:x1] = i
     # isolated pixels (label 0 with depth, off every plane): speckled depth on thin or shiny objects
     loose = (lab == 0) & valid & (planes == 0)
+    join = _Join(join_gap, join_rel, join_px, min_segment, cam, max_spill)
     masks, notes = [], []
     for i, rect in enumerate(rects):
-        x0, y0, x1, y1 = rect
-        sub = np.where(owner[y0:y1, x0:x1] == i, lab[y0:y1, x0:x1], 0)
-        ys, xs = np.mgrid[y0:y1, x0:x1]
-        bx0, by0, bx1, by1 = boxes[i]
-        cx, cy, hw, hh = (bx0 + bx1) / 2, (by0 + by1) / 2, (bx1 - bx0) / 4, (by1 - by0) / 4
-        w = np.where((np.abs(xs + 0.5 - cx) <= hw) & (np.abs(ys + 0.5 - cy) <= hh), 1.0, 0.2)
-        segs, inv = np.unique(sub, return_inverse=True)
-        inv = inv.reshape(sub.shape)
-        score = np.bincount(inv.ravel(), weights=w.ravel(), minlength=len(segs))
-        count = np.bincount(inv.ravel(), minlength=len(segs))
-        keep = (segs > 0) & (count >= 3)
-        note: dict = {"owned_segments": int(keep.sum())}
-        if not keep.any():
-            masks.append(np.zeros((H, W), bool))
-            notes.append(note)
-            continue
-        cand = np.flatnonzero(keep)
-        cand = cand[np.argsort(-score[cand], kind="stable")]
-        pts = world[y0:y1, x0:x1].reshape(-1, 3)
-        flat = inv.ravel()
-        order = np.argsort(flat, kind="stable")
-        starts = np.searchsorted(flat[order], np.arange(len(segs) + 1))
-        big = [int(cand[0])] + [int(k) for k in cand[1:] if count[k] >= min_segment]
-        ext = {}
-        for k in big:  # robust 3D extents of the main segment and of those big enough to join
-            p = pts[order[starts[k]:starts[k + 1]]]
-            ext[k] = (np.percentile(p, 2, axis=0), np.percentile(p, 98, axis=0))
-        # the best segment, then (transitively) every owned segment that touches the chosen ones in the
-        # image, lies near them in 3D and keeps the 3D extent on the 2D box
-        chosen = [int(cand[0])]
-        lo, hi = ext[chosen[0]]
-        # parts of one object lie within a fraction of its size of each other (the main part's size: a
-        # limit that grew with the union would let it run away through clutter)
-        limit = max(join_gap, join_rel * float(np.max(hi[:2] - lo[:2])))
-        rest = big[1:]
-        kern = np.ones((2 * join_px + 1, 2 * join_px + 1), np.uint8)
-        grew = True
-        while grew and rest:
-            grew = False
-            near = cv2.dilate(np.isin(inv, chosen).astype(np.uint8), kern) > 0
-            for k in list(rest):
-                slo, shi = ext[k]
-                gap = np.maximum(0.0, np.maximum(slo - hi, lo - shi))
-                if float(np.linalg.norm(gap)) > limit or not bool(np.any(near & (inv == k))):
-                    continue
-                if cam is not None and _spill(np.minimum(lo, slo), np.maximum(hi, shi), boxes[i], cam) > max(
-                        max_spill, _spill(lo, hi, boxes[i], cam)):
-                    continue
-                chosen.append(k)
-                rest.remove(k)
-                lo, hi = np.minimum(lo, slo), np.maximum(hi, shi)
-                grew = True
-        m = np.zeros((H, W), bool)
-        m[y0:y1, x0:x1] = np.isin(inv, chosen) & (sub > 0)
-        # isolated pixels at the object's depth, in the part of the box no smaller box covers
-        zc = depth[y0:y1, x0:x1]
-        zmed = float(np.median(zc[m[y0:y1, x0:x1]]))
-        add = loose[y0:y1, x0:x1] & (inner[y0:y1, x0:x1] == i) & (np.abs(zc - zmed) <= max(0.05, 0.03 * zmed))
-        m[y0:y1, x0:x1] |= add
-        note["segments"] = len(chosen)
-        note["isolated_pixels"] = int(add.sum())
+        m, note = _box_mask(i, rect, boxes[i], lab, owner, inner, loose, depth, world, join)
         masks.append(m)
         notes.append(note)
     return BoxMasks(masks, notes, lab)
+
+
+@dataclass(frozen=True)
+class _Join:
+    """When an owned segment joins a box's main segment (see the module docstring)."""
+
+    gap: float
+    rel: float
+    px: int
+    min_segment: int
+    cam: Any
+    max_spill: float
+
+
+def _box_mask(
+    i: int,
+    rect: tuple[int, int, int, int],
+    bb: tuple[float, float, float, float],
+    lab: np.ndarray,
+    owner: np.ndarray,
+    inner: np.ndarray,
+    loose: np.ndarray,
+    depth: np.ndarray,
+    world: np.ndarray,
+    join: _Join,
+) -> tuple[np.ndarray, dict]:
+    """Box i's mask: its best owned segment (weighted towards the box centre), the owned segments that join
+    it, and the isolated pixels of its private area at the object's depth; and its notes."""
+    H, W = depth.shape
+    x0, y0, x1, y1 = rect
+    sub = np.where(owner[y0:y1, x0:x1] == i, lab[y0:y1, x0:x1], 0)
+    ys, xs = np.mgrid[y0:y1, x0:x1]
+    bx0, by0, bx1, by1 = bb
+    cx, cy, hw, hh = (bx0 + bx1) / 2, (by0 + by1) / 2, (bx1 - bx0) / 4, (by1 - by0) / 4
+    w = np.where((np.abs(xs + 0.5 - cx) <= hw) & (np.abs(ys + 0.5 - cy) <= hh), 1.0, 0.2)
+    segs, inv = np.unique(sub, return_inverse=True)
+    inv = inv.reshape(sub.shape)
+    score = np.bincount(inv.ravel(), weights=w.ravel(), minlength=len(segs))
+    count = np.bincount(inv.ravel(), minlength=len(segs))
+    keep = (segs > 0) & (count >= 3)
+    note: dict = {"owned_segments": int(keep.sum())}
+    if not keep.any():
+        return np.zeros((H, W), bool), note
+    cand = np.flatnonzero(keep)
+    cand = cand[np.argsort(-score[cand], kind="stable")]
+    pts = world[y0:y1, x0:x1].reshape(-1, 3)
+    flat = inv.ravel()
+    order = np.argsort(flat, kind="stable")
+    starts = np.searchsorted(flat[order], np.arange(len(segs) + 1))
+    big = [int(cand[0])] + [int(k) for k in cand[1:] if count[k] >= join.min_segment]
+    ext = {}
+    for k in big:  # robust 3D extents of the main segment and of those big enough to join
+        p = pts[order[starts[k] : starts[k + 1]]]
+        ext[k] = (np.percentile(p, 2, axis=0), np.percentile(p, 98, axis=0))
+    chosen = _join_segments(big, ext, inv, bb, join)
+    m = np.zeros((H, W), bool)
+    m[y0:y1, x0:x1] = np.isin(inv, chosen) & (sub > 0)
+    # isolated pixels at the object's depth, in the part of the box no smaller box covers
+    zc = depth[y0:y1, x0:x1]
+    zmed = float(np.median(zc[m[y0:y1, x0:x1]]))
+    add = loose[y0:y1, x0:x1] & (inner[y0:y1, x0:x1] == i) & (np.abs(zc - zmed) <= max(0.05, 0.03 * zmed))
+    m[y0:y1, x0:x1] |= add
+    note["segments"] = len(chosen)
+    note["isolated_pixels"] = int(add.sum())
+    return m, note
+
+
+def _join_segments(
+    big: list[int],
+    ext: dict[int, tuple[np.ndarray, np.ndarray]],
+    inv: np.ndarray,
+    bb: tuple[float, float, float, float],
+    join: _Join,
+) -> list[int]:
+    """The best segment `big[0]`, then (transitively) every other one that touches the chosen ones in the
+    image, lies near them in 3D and keeps the 3D extent on the 2D box `bb`."""
+    import cv2
+
+    chosen = [big[0]]
+    lo, hi = ext[chosen[0]]
+    # parts of one object lie within a fraction of its size of each other (the main part's size: a
+    # limit that grew with the union would let it run away through clutter)
+    limit = max(join.gap, join.rel * float(np.max(hi[:2] - lo[:2])))
+    rest = big[1:]
+    kern = np.ones((2 * join.px + 1, 2 * join.px + 1), np.uint8)
+    cam = join.cam
+    grew = True
+    while grew and rest:
+        grew = False
+        near = cv2.dilate(np.isin(inv, chosen).astype(np.uint8), kern) > 0
+        for k in list(rest):
+            slo, shi = ext[k]
+            gap = np.maximum(0.0, np.maximum(slo - hi, lo - shi))
+            if float(np.linalg.norm(gap)) > limit or not bool(np.any(near & (inv == k))):
+                continue
+            if cam is not None and _spill(np.minimum(lo, slo), np.maximum(hi, shi), bb, cam) > max(
+                join.max_spill, _spill(lo, hi, bb, cam)
+            ):
+                continue
+            chosen.append(k)
+            rest.remove(k)
+            lo, hi = np.minimum(lo, slo), np.maximum(hi, shi)
+            grew = True
+    return chosen

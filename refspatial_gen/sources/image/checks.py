@@ -70,8 +70,14 @@ def finite(v: Any, what: str) -> float:
 
 def positive_int(v: Any, what: str) -> int:
     """An image dimension: a positive integer (640 or 640.0), never a string or a bool."""
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v != int(v) or v <= 0 \
-            or v > 1_000_000:
+    if (
+        isinstance(v, bool)
+        or not isinstance(v, (int, float))
+        or not math.isfinite(v)
+        or v != int(v)
+        or v <= 0
+        or v > 1_000_000
+    ):
         raise Bad("annotation_invalid", f"{what} must be a positive integer, got {_short(v)}")
     return int(v)
 
@@ -116,14 +122,18 @@ def polygons(v: Any) -> list[list[float]]:
 def rle(v: dict) -> dict:
     """COCO RLE {"size": [h, w], "counts": str | [ints >= 0]}; its size is checked against the image later."""
     size, counts = v.get("size"), v.get("counts")
-    if not isinstance(size, list) or len(size) != 2 or not all(isinstance(s, int) and not isinstance(s, bool)
-                                                                 and s > 0 for s in size):
+    if (
+        not isinstance(size, list)
+        or len(size) != 2
+        or not all(isinstance(s, int) and not isinstance(s, bool) and s > 0 for s in size)
+    ):
         raise Bad("annotation_invalid", f"segmentation RLE size must be [height, width], got {_short(size)}")
     if isinstance(counts, str):
         if not counts.isascii():
             raise Bad("annotation_invalid", "segmentation RLE counts string is not ASCII")
-    elif not isinstance(counts, list) or not all(isinstance(c, int) and not isinstance(c, bool) and c >= 0
-                                                   for c in counts):
+    elif not isinstance(counts, list) or not all(
+        isinstance(c, int) and not isinstance(c, bool) and c >= 0 for c in counts
+    ):
         raise Bad("annotation_invalid", "segmentation RLE counts must be a string or a list of integers >= 0")
     return v
 

@@ -20,8 +20,14 @@ F_SUN = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])  # SUN upright (x rig
 LATERAL, DEPTH, VERTICAL, SIZE_ABS, SIZE_REL, VOL_REL = 0.10, 0.10, 0.10, 0.05, 0.10, 0.20
 RELATIONS = ("left", "front", "above", "bigger", "taller", "wider")
 
-EVAL_CONFIG = {"format": "sunrgbd", "depth": {"estimator": "provided"}, "intrinsics": "provided",
-               "complete_categories": False, "min_objects": 1, "min_instance_spread": 0.0}
+EVAL_CONFIG = {
+    "format": "sunrgbd",
+    "depth": {"estimator": "provided"},
+    "intrinsics": "provided",
+    "complete_categories": False,
+    "min_objects": 1,
+    "min_instance_spread": 0.0,
+}
 
 
 def gt_boxes(sample_dir: Path) -> tuple[list[Box3D], np.ndarray]:
@@ -85,31 +91,46 @@ def compare_sunrgbd(root: str | Path, config: dict[str, Any] | None = None, seed
             c_gt = R_gt @ g.center
             e = float(np.linalg.norm(c_lift - c_gt))
             errors.append(e)
-            per_object.append({"image": iid, "category": o.category, "error_cm": round(100 * e, 1),
-                               "lifted_size": [round(float(s), 2) for s in o.box.size],
-                               "gt_size": [round(float(s), 2) for s in g.size]})
+            per_object.append(
+                {
+                    "image": iid,
+                    "category": o.category,
+                    "error_cm": round(100 * e, 1),
+                    "lifted_size": [round(float(s), 2) for s in o.box.size],
+                    "gt_size": [round(float(s), 2) for s in g.size],
+                }
+            )
         for i in range(len(objs)):
             for j in range(i + 1, len(objs)):
                 A, B = objs[i], objs[j]
                 la = pair_relations(A.box, B.box, T[:3, :3], T[:3, 3])
-                ga = pair_relations(gts[int(A.provenance["annotation_id"])], gts[int(B.provenance["annotation_id"])],
-                                    R_gt, np.zeros(3))
+                ga = pair_relations(
+                    gts[int(A.provenance["annotation_id"])], gts[int(B.provenance["annotation_id"])], R_gt, np.zeros(3)
+                )
                 for r in RELATIONS:
                     if la[r] != 0 and ga[r] != 0:
                         agree[r][1] += 1
                         agree[r][0] += int(la[r] == ga[r])
                         mine[1] += 1
                         mine[0] += int(la[r] == ga[r])
-        per_frame[iid] = {"objects": len(objs), "annotated": len(gts), "relation_pairs": mine[1],
-                          "relation_agreement": round(mine[0] / mine[1], 4) if mine[1] else None,
-                          "gravity_error_deg": round(gravity_err[-1], 2)}
+        per_frame[iid] = {
+            "objects": len(objs),
+            "annotated": len(gts),
+            "relation_pairs": mine[1],
+            "relation_agreement": round(mine[0] / mine[1], 4) if mine[1] else None,
+            "gravity_error_deg": round(gravity_err[-1], 2),
+        }
     total = sum(v[1] for v in agree.values())
     ok = sum(v[0] for v in agree.values())
     return {
-        "objects": len(errors), "median_centre_error_cm": round(100 * float(np.median(errors)), 1) if errors else None,
+        "objects": len(errors),
+        "median_centre_error_cm": round(100 * float(np.median(errors)), 1) if errors else None,
         "mean_centre_error_cm": round(100 * float(np.mean(errors)), 1) if errors else None,
-        "relation_pairs": total, "relation_agreement": round(ok / total, 4) if total else None,
+        "relation_pairs": total,
+        "relation_agreement": round(ok / total, 4) if total else None,
         "by_relation": {r: {"agree": a, "decided_both": n} for r, (a, n) in agree.items()},
-        "gravity_error_deg": [round(g, 2) for g in gravity_err], "per_object": per_object, "frames": frames,
+        "gravity_error_deg": [round(g, 2) for g in gravity_err],
+        "per_object": per_object,
+        "frames": frames,
         "per_frame": per_frame,
     }

@@ -44,9 +44,14 @@ def world_from_cam(up_cam: np.ndarray, camera_height: float | None) -> np.ndarra
     return T
 
 
-def estimate_gravity(points_cam: np.ndarray, rng: np.random.Generator, prior_up: np.ndarray,
-                     max_tilt_deg: float = 40.0, min_inlier_fraction: float = 0.08,
-                     min_inliers: int = 300) -> GravityEstimate | None:
+def estimate_gravity(
+    points_cam: np.ndarray,
+    rng: np.random.Generator,
+    prior_up: np.ndarray,
+    max_tilt_deg: float = 40.0,
+    min_inlier_fraction: float = 0.08,
+    min_inliers: int = 300,
+) -> GravityEstimate | None:
     """Gravity from the largest near-horizontal plane among `points_cam` (background points, camera frame).
 
     Returns None when no plane with enough support exists (the caller decides: prior or unknown)."""
@@ -58,8 +63,9 @@ def estimate_gravity(points_cam: np.ndarray, rng: np.random.Generator, prior_up:
     need = max(min_inliers, int(min_inlier_fraction * len(P)))
     # one-point hypotheses (a point and its normal): the floor is found on every seed, not 5 in 6
     normals = point_normals(P, np.sort(rng.choice(len(P), min(len(P), 2000), replace=False)))
-    planes = horizontal_planes(P, rng, prior_up, thresh, need, max_planes=3, max_tilt=np.deg2rad(max_tilt_deg),
-                               normals=normals)
+    planes = horizontal_planes(
+        P, rng, prior_up, thresh, need, max_planes=3, max_tilt=np.deg2rad(max_tilt_deg), normals=normals
+    )
     if not planes:
         return None
     # a second "plane" within 10 cm of a bigger one is the same surface's edge or bevel, not a new level
@@ -87,14 +93,32 @@ def estimate_gravity(points_cam: np.ndarray, rng: np.random.Generator, prior_up:
     heights = [pl.d for pl in planes]  # distance of the camera above each plane (n up, camera at origin)
     cam_h = float(max(heights)) if max(heights) > 0 else None
     tilt = float(np.rad2deg(np.arccos(np.clip(up @ prior_up, -1, 1))))
-    return GravityEstimate(up, True, "plane_ransac", cam_h, planes, walls,
-                           {"walls": len(walls), "plane_inliers": [int(len(p.inliers)) for p in planes],
-                            "plane_heights": [round(float(h), 4) for h in heights], "tilt_from_prior_deg": round(tilt, 3),
-                            "threshold_m": round(thresh, 4)})
+    return GravityEstimate(
+        up,
+        True,
+        "plane_ransac",
+        cam_h,
+        planes,
+        walls,
+        {
+            "walls": len(walls),
+            "plane_inliers": [int(len(p.inliers)) for p in planes],
+            "plane_heights": [round(float(h), 4) for h in heights],
+            "tilt_from_prior_deg": round(tilt, 3),
+            "threshold_m": round(thresh, 4),
+        },
+    )
 
 
-def floor_below(P: np.ndarray, up: np.ndarray, planes: list[Plane], thresh: float, min_inliers: int,
-                normals: np.ndarray, min_spread: float = 0.5) -> Plane | None:
+def floor_below(
+    P: np.ndarray,
+    up: np.ndarray,
+    planes: list[Plane],
+    thresh: float,
+    min_inliers: int,
+    normals: np.ndarray,
+    min_spread: float = 0.5,
+) -> Plane | None:
     """A smaller level below every level found (the floor of a bedroom seen past the bed), from the
     heights of all points along the known up: the lowest window of width 2 x `thresh` holding at least
     `min_inliers` points spread at least `min_spread` metres across, three times as many as the windows
@@ -113,7 +137,7 @@ def floor_below(P: np.ndarray, up: np.ndarray, planes: list[Plane], thresh: floa
     win = counts[:-1] + counts[1:] if len(counts) > 1 else counts
     span = max(1, int(round(0.3 / thresh)))
     for k in np.flatnonzero(win >= min_inliers)[::-1]:  # lowest first
-        around = np.r_[win[max(0, k - span):max(0, k - 2)], win[k + 3:k + 3 + span]]
+        around = np.r_[win[max(0, k - span) : max(0, k - 2)], win[k + 3 : k + 3 + span]]
         if around.size and win[k] < 3.0 * max(float(np.median(around)), 1.0):
             continue  # no spike: a vertical face sliced at some height, not a level
         lo, hi = edges[k], edges[min(k + 2, len(edges) - 1)]
@@ -125,8 +149,12 @@ def floor_below(P: np.ndarray, up: np.ndarray, planes: list[Plane], thresh: floa
         nv = nv[np.all(np.isfinite(nv), axis=1)]
         level = np.abs(nv @ up) >= np.cos(np.deg2rad(10.0))
         # its points face up (a wall or a table front sliced at that height faces sideways)
-        if len(inl) >= min_inliers and np.ptp(flat, axis=0).max() >= min_spread and len(nv) >= 5 \
-                and level.mean() >= 0.6:
+        if (
+            len(inl) >= min_inliers
+            and np.ptp(flat, axis=0).max() >= min_spread
+            and len(nv) >= 5
+            and level.mean() >= 0.6
+        ):
             return Plane(up, d, inl)
     return None
 
@@ -156,8 +184,15 @@ def refine_up(up: np.ndarray, planes: list[Plane], walls: list[Plane], max_dev_d
     return u if u @ up >= 0 else -u
 
 
-def find_walls(points: np.ndarray, rng: np.random.Generator, up: np.ndarray, thresh: float, min_inliers: int,
-               max_walls: int = 2, normals: np.ndarray | None = None) -> list[Plane]:
+def find_walls(
+    points: np.ndarray,
+    rng: np.random.Generator,
+    up: np.ndarray,
+    thresh: float,
+    min_inliers: int,
+    max_walls: int = 2,
+    normals: np.ndarray | None = None,
+) -> list[Plane]:
     """Up to `max_walls` large vertical planes (normal within 10 degrees of horizontal), largest first.
     Lifting removes their points from box-annotated objects (the wall behind a bed)."""
     from refspatial_gen.depth.planes import ransac_plane
@@ -168,8 +203,9 @@ def find_walls(points: np.ndarray, rng: np.random.Generator, up: np.ndarray, thr
     for _ in range(max_walls):
         if len(remaining) < min_inliers:
             break
-        best = ransac_plane(P[remaining], rng, thresh, None, vertical_to=up,
-                            normals=None if normals is None else normals[remaining])
+        best = ransac_plane(
+            P[remaining], rng, thresh, None, vertical_to=up, normals=None if normals is None else normals[remaining]
+        )
         if best is None or len(best.inliers) < min_inliers:
             break
         out.append(Plane(best.n, best.d, remaining[best.inliers]))

@@ -1,8 +1,8 @@
 """Intrinsics for photos: provided by the dataset, from EXIF focal length, or a field-of-view prior.
 
 Pixel convention (the same as core.camera.Camera): pixel (u, v) spans [u, u+1) x [v, v+1), its centre
-is (u + 0.5, v + 0.5), so an image centre is (W / 2, H / 2). Every result says where it came from (`origin`), and the image
-source records it in `Frame.meta["intrinsics"]`.
+is (u + 0.5, v + 0.5), so an image centre is (W / 2, H / 2). Every result says where it came from
+(`origin`), and the image source records it in `Frame.meta["intrinsics"]`.
 """
 
 from __future__ import annotations
@@ -35,8 +35,14 @@ class Intrinsics:
     detail: str = ""
 
     def meta(self) -> dict:
-        return {"origin": self.origin, "detail": self.detail, "fx": round(self.fx, 4), "fy": round(self.fy, 4),
-                "cx": round(self.cx, 4), "cy": round(self.cy, 4)}
+        return {
+            "origin": self.origin,
+            "detail": self.detail,
+            "fx": round(self.fx, 4),
+            "fy": round(self.fy, 4),
+            "cx": round(self.cx, 4),
+            "cy": round(self.cy, 4),
+        }
 
 
 def from_fov(width: int, height: int, hfov_deg: float) -> Intrinsics:
@@ -80,8 +86,14 @@ def from_sidecar(path: Path) -> Intrinsics | None:
     return Intrinsics(float(d["fx"]), float(d["fy"]), float(d["cx"]), float(d["cy"]), "provided", side.name)
 
 
-def resolve_intrinsics(mode: str, image_path: Path, width: int, height: int, hfov_deg: float,
-                       provided: tuple[float, float, float, float] | None) -> Intrinsics:
+def resolve_intrinsics(
+    mode: str,
+    image_path: Path,
+    width: int,
+    height: int,
+    hfov_deg: float,
+    provided: tuple[float, float, float, float] | None,
+) -> Intrinsics:
     """Intrinsics by `mode`: provided/exif are strict (DropUnit when absent); auto falls back in that order
     to the field-of-view prior."""
     if mode in ("auto", "provided"):

@@ -70,7 +70,9 @@ def fit_upright_box(pts: np.ndarray) -> Box3D:
         sx, sy = hi - lo
     else:
         yaw, center_xy, sx, sy = 0.0, xy.mean(axis=0), 0.0, 0.0
-    return Box3D(np.array([center_xy[0], center_xy[1], (z0 + z1) / 2]), np.array([sx, sy, max(z1 - z0, 0.0)]), rot_z(yaw))
+    return Box3D(
+        np.array([center_xy[0], center_xy[1], (z0 + z1) / 2]), np.array([sx, sy, max(z1 - z0, 0.0)]), rot_z(yaw)
+    )
 
 
 def complete_along_view(box: Box3D, cam_xy: np.ndarray) -> tuple[Box3D, float]:
@@ -112,9 +114,17 @@ def depth_components(zc: np.ndarray, rel_jump: float = 0.03, abs_jump: float = 0
     return labels
 
 
-def lift_object(xs: np.ndarray, ys: np.ndarray, zz: np.ndarray, cam, params: LiftParams,
-                support_z: list[float] | None = None, walls: list[tuple[np.ndarray, float]] | None = None,
-                weights: np.ndarray | None = None, preselected: bool = False) -> Lifted | str:
+def lift_object(
+    xs: np.ndarray,
+    ys: np.ndarray,
+    zz: np.ndarray,
+    cam,
+    params: LiftParams,
+    support_z: list[float] | None = None,
+    walls: list[tuple[np.ndarray, float]] | None = None,
+    weights: np.ndarray | None = None,
+    preselected: bool = False,
+) -> Lifted | str:
     """All valid-depth pixels of one object (x, y, z-depth) -> Lifted, or a drop reason string.
 
     `preselected`: the pixels are already the object's surfaces (box annotations cut by
@@ -134,7 +144,7 @@ def lift_object(xs: np.ndarray, ys: np.ndarray, zz: np.ndarray, cam, params: Lif
         if 0 < on_plane.sum() < 0.6 * n_in:  # a majority on the plane means the object *is* the surface
             keep &= ~on_plane
             notes["plane_points_removed"] = int(on_plane.sum())
-    for n, d in ([] if preselected else walls or []):
+    for n, d in [] if preselected else walls or []:
         on_wall = keep & (np.abs(world @ n + d) < params.plane_band)
         if 0 < on_wall.sum() < 0.5 * keep.sum():
             keep &= ~on_wall

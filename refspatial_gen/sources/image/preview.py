@@ -44,10 +44,26 @@ def draw_frame(frame: Frame, extra_boxes: list | None = None, top_view: bool = T
         if pt is not None:
             cv2.circle(img, (int(pt[0]), int(pt[1])), 5, (255, 255, 255), -1)
             cv2.circle(img, (int(pt[0]), int(pt[1])), 3, col, -1)
-            cv2.putText(img, f"{o.id}:{o.category}", (int(pt[0]) + 6, int(pt[1]) - 6), cv2.FONT_HERSHEY_SIMPLEX,
-                        0.45, (255, 255, 255), 2, cv2.LINE_AA)
-            cv2.putText(img, f"{o.id}:{o.category}", (int(pt[0]) + 6, int(pt[1]) - 6), cv2.FONT_HERSHEY_SIMPLEX,
-                        0.45, col, 1, cv2.LINE_AA)
+            cv2.putText(
+                img,
+                f"{o.id}:{o.category}",
+                (int(pt[0]) + 6, int(pt[1]) - 6),
+                cv2.FONT_HERSHEY_SIMPLEX,
+                0.45,
+                (255, 255, 255),
+                2,
+                cv2.LINE_AA,
+            )
+            cv2.putText(
+                img,
+                f"{o.id}:{o.category}",
+                (int(pt[0]) + 6, int(pt[1]) - 6),
+                cv2.FONT_HERSHEY_SIMPLEX,
+                0.45,
+                col,
+                1,
+                cv2.LINE_AA,
+            )
     for b in extra_boxes or []:
         draw_box(b, (255, 255, 255), 1)
     if not top_view:
@@ -73,8 +89,16 @@ def _top_view(frame: Frame, size: int, extra_boxes: list | None) -> np.ndarray:
         cv2.polylines(canvas, [px(b.footprint())], True, col, 2 if i < len(frame.objects) else 1, cv2.LINE_AA)
     c = px(frame.camera.position[:2])
     cv2.circle(canvas, tuple(int(v) for v in c), 5, (0, 255, 255), -1)
-    cv2.putText(canvas, f"top view, {1.0 / s * 100:.1f} cm/px", (10, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.45,
-                (200, 200, 200), 1, cv2.LINE_AA)
+    cv2.putText(
+        canvas,
+        f"top view, {1.0 / s * 100:.1f} cm/px",
+        (10, 20),
+        cv2.FONT_HERSHEY_SIMPLEX,
+        0.45,
+        (200, 200, 200),
+        1,
+        cv2.LINE_AA,
+    )
     return canvas
 
 

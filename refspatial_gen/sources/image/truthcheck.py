@@ -46,15 +46,25 @@ def photo_anchors(cands: list, H: int, W: int, cfg_share: float = 0.1) -> list[A
     return out
 
 
-def fit_photo_camera(cands: list, H: int, W: int, fy: float, cy: float, cam_h: float, pitch: float,
-                     cfg: dict[str, Any]) -> CameraFit:
+def fit_photo_camera(
+    cands: list, H: int, W: int, fy: float, cy: float, cam_h: float, pitch: float, cfg: dict[str, Any]
+) -> CameraFit:
     """The photo's camera (height, pitch) from its anchors, the recipe's values as the prior."""
     if not cfg.get("fit_camera", True):
         return CameraFit(cam_h, pitch, "prior", 0, [], "unverified")
     lo_p, hi_p = (float(x) for x in cfg["fit_pitch_range_deg"])
     lo_h, hi_h = (float(x) for x in cfg["fit_height_range"])
-    return fit_camera(photo_anchors(cands, H, W), fy, cy, cam_h, pitch, (lo_p, hi_p), (lo_h, hi_h),
-                      float(cfg["fit_min_inlier_share"]), min_anchors=int(cfg["fit_min_anchors"]))
+    return fit_camera(
+        photo_anchors(cands, H, W),
+        fy,
+        cy,
+        cam_h,
+        pitch,
+        (lo_p, hi_p),
+        (lo_h, hi_h),
+        float(cfg["fit_min_inlier_share"]),
+        min_anchors=int(cfg["fit_min_anchors"]),
+    )
 
 
 def check_sizes(cands: list, cfg: dict[str, Any], measured: bool, truth: dict[str, int]) -> None:
@@ -69,8 +79,13 @@ def check_sizes(cands: list, cfg: dict[str, Any], measured: bool, truth: dict[st
         lower = {"extent", "length"}
         if measured or top_cut:
             lower.add("height")
-        why = check_size(c.category, c.box.size, dims=("height", "length", "extent"), tolerance=float(cfg["size_tolerance"]),
-                         lower_bounds=lower)
+        why = check_size(
+            c.category,
+            c.box.size,
+            dims=("height", "length", "extent"),
+            tolerance=float(cfg["size_tolerance"]),
+            lower_bounds=lower,
+        )
         if why == UNRANGED:
             c.provenance["size_check"] = UNRANGED
         elif why in IMPLAUSIBLE:
@@ -104,7 +119,7 @@ def check_interpenetration(cands: list, max_share: float, truth: dict[str, int])
 
     live = [c for c in cands if c.reason is None and c.box is not None]
     for i, a in enumerate(live):
-        for b in live[i + 1:]:
+        for b in live[i + 1 :]:
             if a.reason is not None or b.reason is not None:
                 continue
             if _overlap_share(a.box, b.box) > max_share:

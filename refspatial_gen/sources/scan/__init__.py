@@ -6,7 +6,12 @@ rules (depth checks, keyframe tests, visibility, masks, gravity) to make Frames.
 """
 
 from refspatial_gen.sources.scan.source import (
-    CONFIG_FIELDS, ScanSource, input_root, load_frame, parse_unit_key, unit_key,
+    CONFIG_FIELDS,
+    ScanSource,
+    input_root,
+    load_frame,
+    parse_unit_key,
+    unit_key,
 )
 
 __all__ = ["CONFIG_FIELDS", "ScanSource", "input_root", "load_frame", "parse_unit_key", "unit_key"]

@@ -35,9 +35,16 @@ def up_aligning_transform(up: np.ndarray, floor_point: np.ndarray | None = None)
     return T
 
 
-def fit_floor(points: np.ndarray, up_hint: np.ndarray, rng: np.random.Generator, max_tilt_deg: float = 30.0,
-              inlier_dist: float = 0.02, iterations: int = 300, min_fraction: float = 0.05,
-              max_planes: int = 3) -> tuple[np.ndarray, np.ndarray, float] | None:
+def fit_floor(
+    points: np.ndarray,
+    up_hint: np.ndarray,
+    rng: np.random.Generator,
+    max_tilt_deg: float = 30.0,
+    inlier_dist: float = 0.02,
+    iterations: int = 300,
+    min_fraction: float = 0.05,
+    max_planes: int = 3,
+) -> tuple[np.ndarray, np.ndarray, float] | None:
     """Lowest large near-horizontal plane -> (unit normal pointing up, a point on it, inlier fraction), or None."""
     pts = np.asarray(points, float)
     up_hint = np.asarray(up_hint, float) / np.linalg.norm(up_hint)

@@ -39,8 +39,9 @@ def _first(root: Path, names: list[str | None], patterns: tuple[str, ...]) -> Pa
 STRUCTURAL = ("wall", "floor", "ceiling")
 
 
-def scannet_labels(root: Path, meta: dict[str, Any], n_points: int,
-                   structural: set[int] | None = None) -> tuple[np.ndarray | None, str]:
+def scannet_labels(
+    root: Path, meta: dict[str, Any], n_points: int, structural: set[int] | None = None
+) -> tuple[np.ndarray | None, str]:
     """Per-point instance ids (0 = none) from ScanNet's segs + aggregation files, and a note. The ids of
     wall/floor/ceiling instances are added to `structural` when given."""
     segs = _first(root, [meta.get("segs_file")], ("*.segs.json",))
@@ -88,8 +89,14 @@ def ply_vertex_labels(path: Path, n_points: int) -> tuple[np.ndarray | None, str
     return None, "no instance vertex property"
 
 
-def box_instances(boxes: list, points: np.ndarray, labels: np.ndarray, explicit: dict[int, int],
-                  min_share: float = 0.5, pad: float = 0.02) -> dict[int, int]:
+def box_instances(
+    boxes: list,
+    points: np.ndarray,
+    labels: np.ndarray,
+    explicit: dict[int, int],
+    min_share: float = 0.5,
+    pad: float = 0.02,
+) -> dict[int, int]:
     """Box id -> instance id: the object JSON's own id when given, else the instance with the most points
     in the box, provided most (`min_share`) of that instance lies in it (a wall crossing the box is not it)."""
     out: dict[int, int] = {}

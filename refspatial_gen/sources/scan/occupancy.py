@@ -22,9 +22,15 @@ FLOOR_BAND = 0.05  # m: depth pixels this close to the floor are "floor" inside 
 GROW = 5.0  # footprints grow by this many point spacings: a sparse cloud misses the tips of legs
 
 
-def unexplained_points(points: np.ndarray, boxes: list, floor_z: float, labels: np.ndarray | None = None,
-                       box_instance: dict[int, int] | None = None, structural: set[int] | None = None,
-                       pad: float = 0.03) -> np.ndarray:
+def unexplained_points(
+    points: np.ndarray,
+    boxes: list,
+    floor_z: float,
+    labels: np.ndarray | None = None,
+    box_instance: dict[int, int] | None = None,
+    structural: set[int] | None = None,
+    pad: float = 0.03,
+) -> np.ndarray:
     """Points above the floor that no annotated object explains: outside every padded box or, with
     labels, of an instance that is no box's (structural instances, walls and floors, explain themselves)."""
     P = np.asarray(points, float)
@@ -38,8 +44,7 @@ def unexplained_points(points: np.ndarray, boxes: list, floor_z: float, labels: 
     return above & ~(known | ((labels <= 0) & inside))
 
 
-def floor_footprints(points: np.ndarray, unexplained: np.ndarray, floor_z: float, spacing: float,
-                     min_points: int = 20):
+def floor_footprints(points: np.ndarray, unexplained: np.ndarray, floor_z: float, spacing: float, min_points: int = 20):
     """Convex hulls (shapely, grown by GROW spacings) of the clusters of low unexplained points."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components

@@ -8,6 +8,7 @@ Camera's corner-origin pixels) with square pixels, which is what `render_camera`
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -54,7 +55,9 @@ def _noise_texture(seed: int, n: int = 256) -> bytes:
     return np.clip(img, 0, 255).astype(np.uint8).tobytes()
 
 
-def render(geoms: list[RenderGeom], cams: list[Camera], light_dir=(0.3, -0.4, -1.0)) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+def render(
+    geoms: list[RenderGeom], cams: list[Camera], light_dir=(0.3, -0.4, -1.0)
+) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Render every camera -> [(rgb uint8, depth float32 metres, geom index int (-1 = background))]."""
     import mujoco
 
@@ -65,29 +68,17 @@ def render(geoms: list[RenderGeom], cams: list[Camera], light_dir=(0.3, -0.4, -1
     spec.visual.headlight.diffuse = [0.5, 0.5, 0.5]
     wb = spec.worldbody
     for k, g in enumerate(geoms):
-        kw = {}
-        if g.texture_seed is not None:
-            spec.add_texture(name=f"tex{k}", type=mujoco.mjtTexture.mjTEXTURE_2D, width=256, height=256, nchannel=3,
-                             data=list(_noise_texture(g.texture_seed)))
-            mat = spec.add_material(name=f"mat{k}", texuniform=True, texrepeat=[2, 2])
-            mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = f"tex{k}"
-            kw["material"] = f"mat{k}"
-        if g.vertices is not None:
-            spec.add_mesh(name=f"mesh{k}", uservert=np.asarray(g.vertices, float).ravel().tolist(),
-                          userface=np.asarray(g.faces, int).ravel().tolist())
-            wb.add_geom(name=g.name, type=mujoco.mjtGeom.mjGEOM_MESH, meshname=f"mesh{k}", rgba=list(g.rgba),
-                        contype=0, conaffinity=0, **kw)
-        else:
-            wb.add_geom(name=g.name, type=mujoco.mjtGeom.mjGEOM_BOX, size=(np.asarray(g.size) / 2).tolist(),
-                        pos=np.asarray(g.center, float).tolist(),
-                        quat=_mat_to_quat(np.eye(3) if g.rotation is None else g.rotation).tolist(),
-                        rgba=list(g.rgba), contype=0, conaffinity=0, **kw)
+        _add_geom(spec, wb, k, g)
     ld = np.asarray(light_dir, float)
     wb.add_light(pos=(-ld * 5).tolist(), dir=ld.tolist(), diffuse=[0.6, 0.6, 0.6], castshadow=False)
     for i, c in enumerate(cams):
         R = c.world_from_cam[:3, :3] @ np.diag([1.0, -1.0, -1.0])
-        wb.add_camera(name=f"cam{i}", pos=c.world_from_cam[:3, 3].tolist(), quat=_mat_to_quat(R).tolist(),
-                      fovy=float(np.degrees(2 * np.arctan(c.height / (2 * c.fy)))))
+        wb.add_camera(
+            name=f"cam{i}",
+            pos=c.world_from_cam[:3, 3].tolist(),
+            quat=_mat_to_quat(R).tolist(),
+            fovy=float(np.degrees(2 * np.arctan(c.height / (2 * c.fy)))),
+        )
     model = spec.compile()
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
@@ -112,3 +103,49 @@ def render(geoms: list[RenderGeom], cams: list[Camera], light_dir=(0.3, -0.4, -1
         depth[idx < 0] = 0.0
         out.append((rgb, depth, idx))
     return out
+
+
+def _add_geom(spec: Any, wb: Any, k: int, g: RenderGeom) -> None:
+    """Geom k: a mesh or a box, with a noise texture when it has a texture seed."""
+    import mujoco
+
+    kw = {}
+    if g.texture_seed is not None:
+        spec.add_texture(
+            name=f"tex{k}",
+            type=mujoco.mjtTexture.mjTEXTURE_2D,
+            width=256,
+            height=256,
+            nchannel=3,
+            data=list(_noise_texture(g.texture_seed)),
+        )
+        mat = spec.add_material(name=f"mat{k}", texuniform=True, texrepeat=[2, 2])
+        mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = f"tex{k}"
+        kw["material"] = f"mat{k}"
+    if g.vertices is not None:
+        spec.add_mesh(
+            name=f"mesh{k}",
+            uservert=np.asarray(g.vertices, float).ravel().tolist(),
+            userface=np.asarray(g.faces, int).ravel().tolist(),
+        )
+        wb.add_geom(
+            name=g.name,
+            type=mujoco.mjtGeom.mjGEOM_MESH,
+            meshname=f"mesh{k}",
+            rgba=list(g.rgba),
+            contype=0,
+            conaffinity=0,
+            **kw,
+        )
+    else:
+        wb.add_geom(
+            name=g.name,
+            type=mujoco.mjtGeom.mjGEOM_BOX,
+            size=(np.asarray(g.size) / 2).tolist(),
+            pos=np.asarray(g.center, float).tolist(),
+            quat=_mat_to_quat(np.eye(3) if g.rotation is None else g.rotation).tolist(),
+            rgba=list(g.rgba),
+            contype=0,
+            conaffinity=0,
+            **kw,
+        )

@@ -3,9 +3,10 @@
 Unit keys are `scan:<reader>:<folder relative to the input root, '.' for the root>#<view id>`: no
 absolute path, so moving or copying the data folder changes neither the keys nor (the unit's random
 generator derives from the key) the output bytes. `load` resolves the folder against `config["_input"]`,
-the absolute input folder the recipe loader puts in every source's config. Views are listed sorted by the reader, then thinned
-to every `keyframe_stride`-th view of each sequence; blur and the minimum number of visible objects are
-checked when the frame is loaded (DropUnit "blurry" / "too_few_visible_objects").
+the absolute input folder the recipe loader puts in every source's config. Views are listed sorted by
+the reader, then thinned to every `keyframe_stride`-th view of each sequence; blur and the minimum
+number of visible objects are checked when the frame is loaded (DropUnit "blurry" /
+"too_few_visible_objects").
 """
 
 from __future__ import annotations
@@ -32,18 +33,29 @@ CONFIG_FIELDS: dict[str, Field] = {
     "min_visible_objects": Field(int, default=1, min=0, doc="drop views with fewer visible objects"),
     "min_visible_fraction": Field(float, default=0.0, min=0.0, max=1.0, doc="objects less visible are left out"),
     "min_mask_pixels": Field(int, default=64, min=1, doc="objects with fewer visible pixels are left out"),
-    "occlusion_tolerance": Field(float, default=0.025, min=0.0, doc="metres: a pixel is occluded when depth is nearer by more"),
+    "occlusion_tolerance": Field(
+        float, default=0.025, min=0.0, doc="metres: a pixel is occluded when depth is nearer by more"
+    ),
     "mask_pad": Field(float, default=0.01, min=0.0, doc="metres of box padding when testing depth points"),
     "floor_margin": Field(float, default=0.03, min=0.0, doc="metres above a box bottom not counted as the object"),
     "max_width": Field(int, default=640, min=0, doc="downscale wider images to this width (0 = keep)"),
     "splat_scale": Field(float, default=1.0, min=0.1, doc="splat half-size in point spacings (point-cloud depth)"),
-    "instance_labels": Field(bool, default=True, doc="use per-point instance labels when the scan has them: a "
-                                                     "box's mask keeps only pixels showing its own instance"),
-    "withhold_unexplained_floor": Field(bool, default=True, doc="point clouds: unknown depth on the floor under "
-                                                                "unannotated things standing on it (no free space there)"),
+    "instance_labels": Field(
+        bool,
+        default=True,
+        doc="use per-point instance labels when the scan has them: a "
+        "box's mask keeps only pixels showing its own instance",
+    ),
+    "withhold_unexplained_floor": Field(
+        bool,
+        default=True,
+        doc="point clouds: unknown depth on the floor under unannotated things standing on it (no free space there)",
+    ),
     "unexplained_min_points": Field(int, default=20, min=3, doc="low unexplained points that make such a footprint"),
     "depth_encoding": Field(str, default="auto", choices=("auto", *DEPTH_ENCODINGS)),
-    "intrinsics": Field(dict, default=None, doc="{width,height,fx,fy,cx,cy} (OpenCV pixel centres) for trajectories without them"),
+    "intrinsics": Field(
+        dict, default=None, doc="{width,height,fx,fy,cx,cy} (OpenCV pixel centres) for trajectories without them"
+    ),
     "boxes_file": Field(str, default=None, doc="side file of boxes (generic schema) for readers without boxes"),
     "options": Field(dict, default=None, doc="reader-specific options (colmap, usd, mcap: see docs/scan.md)"),
     "perception": perception_field(),  # box-less trajectories: objects from local models (docs/perception.md)
@@ -67,8 +79,10 @@ def parse_unit_key(key: str) -> tuple[str, str, str]:
     reader, folder = body.split(":", 1)
     rel = PurePosixPath(folder)
     if not folder or rel.is_absolute() or ".." in rel.parts or Path(folder).is_absolute():
-        raise ValueError(f"scan unit key {key!r}: the folder must be relative to the input root "
-                         f"(keys with absolute folders come from an older version; plan again)")
+        raise ValueError(
+            f"scan unit key {key!r}: the folder must be relative to the input root "
+            f"(keys with absolute folders come from an older version; plan again)"
+        )
     return reader, folder, view
 
 
@@ -76,8 +90,10 @@ def input_root(config: dict[str, Any]) -> Path:
     """The absolute input folder that relative unit keys resolve against (recipe/CLI `_input`, else `input`)."""
     base = config.get("_input") or config.get("input")
     if not base:
-        raise ValueError("scan load() needs config['_input'] (the input folder; the recipe loader sets it "
-                         "from --input or the recipe's `input:`)")
+        raise ValueError(
+            "scan load() needs config['_input'] (the input folder; the recipe loader sets it "
+            "from --input or the recipe's `input:`)"
+        )
     return Path(base).resolve()
 
 
@@ -126,8 +142,9 @@ class ScanSource:
         return [frame]
 
 
-def load_frame(path: str | Path, view_id: str | None = None, config: dict[str, Any] | None = None,
-               reader: str = "auto") -> Frame:
+def load_frame(
+    path: str | Path, view_id: str | None = None, config: dict[str, Any] | None = None, reader: str = "auto"
+) -> Frame:
     """Convenience for tests and notebooks: one Frame from a scan folder (first view when none given)."""
     config = {k: f.default for k, f in CONFIG_FIELDS.items()} | dict(config or {})
     root = Path(path).resolve()

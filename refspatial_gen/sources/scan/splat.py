@@ -24,8 +24,15 @@ def point_spacing(points: np.ndarray, sample: int = 4000) -> float:
     return float(np.median(d[:, 1]))
 
 
-def splat_depth(points: np.ndarray, cam: Camera, spacing: float, scale: float = 0.75,
-                max_radius: int = 12, near: float = 0.05, with_owner: bool = False):
+def splat_depth(
+    points: np.ndarray,
+    cam: Camera,
+    spacing: float,
+    scale: float = 0.75,
+    max_radius: int = 12,
+    near: float = 0.05,
+    with_owner: bool = False,
+):
     """World points -> float32 z-depth map (0 = no point). Splat half-size = scale * spacing * f / z pixels.
     With `with_owner`, also the (H, W) int64 index of the point each pixel shows (-1 = none): per-point
     instance labels project into the frame through it, with the same z-buffer as the depth."""

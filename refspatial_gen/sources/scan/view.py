@@ -61,5 +61,7 @@ def boxes_to_world(boxes: list[ScanBox], T: np.ndarray) -> list[ScanBox]:
     out = []
     for b in boxes:
         nb = Box3D(T[:3, :3] @ b.box.center + T[:3, 3], b.box.size, T[:3, :3] @ b.box.rotation)
-        out.append(ScanBox(b.id, b.category, nb, b.front, b.front_phrase, b.name, dict(b.attributes), dict(b.provenance)))
+        out.append(
+            ScanBox(b.id, b.category, nb, b.front, b.front_phrase, b.name, dict(b.attributes), dict(b.provenance))
+        )
     return out

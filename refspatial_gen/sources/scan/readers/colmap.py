@@ -75,12 +75,25 @@ def pose_errors(est: dict[str, np.ndarray], ref: dict[str, np.ndarray]) -> dict[
         cerr.append(float(np.linalg.norm(c - ref[n][:3, 3])))
         cosang = (np.trace(Rw.T @ ref[n][:3, :3]) - 1) / 2
         rerr.append(float(np.degrees(np.arccos(np.clip(cosang, -1, 1)))))
-    return {"images": names, "scale": s, "R": R, "t": t, "centre_err_m": cerr, "rot_err_deg": rerr,
-            "max_centre_err_m": max(cerr), "max_rot_err_deg": max(rerr)}
+    return {
+        "images": names,
+        "scale": s,
+        "R": R,
+        "t": t,
+        "centre_err_m": cerr,
+        "rot_err_deg": rerr,
+        "max_centre_err_m": max(cerr),
+        "max_rot_err_deg": max(rerr),
+    }
 
 
-def run_sfm(image_dir: Path, work_dir: Path, camera_model: str = "PINHOLE", single_camera: bool = True,
-            camera_params: tuple[float, ...] | None = None):
+def run_sfm(
+    image_dir: Path,
+    work_dir: Path,
+    camera_model: str = "PINHOLE",
+    single_camera: bool = True,
+    camera_params: tuple[float, ...] | None = None,
+):
     """SIFT features, exhaustive matching and incremental mapping; returns the largest Reconstruction
     (written to work_dir/sparse/0). Slow: seconds per handful of images on CPU.
 
@@ -97,8 +110,13 @@ def run_sfm(image_dir: Path, work_dir: Path, camera_model: str = "PINHOLE", sing
     reader_opts.camera_model = camera_model
     if camera_params is not None:
         reader_opts.camera_params = ",".join(f"{float(x):.10g}" for x in camera_params)
-    pycolmap.extract_features(db, image_dir, camera_mode=pycolmap.CameraMode.SINGLE if single_camera else pycolmap.CameraMode.AUTO,
-                              reader_options=reader_opts, device=pycolmap.Device.cpu)
+    pycolmap.extract_features(
+        db,
+        image_dir,
+        camera_mode=pycolmap.CameraMode.SINGLE if single_camera else pycolmap.CameraMode.AUTO,
+        reader_options=reader_opts,
+        device=pycolmap.Device.cpu,
+    )
     pycolmap.match_exhaustive(db, device=pycolmap.Device.cpu)
     out = work_dir / "sparse"
     out.mkdir(exist_ok=True)
@@ -130,8 +148,13 @@ def _model(root_s: str) -> dict[str, Any]:
     for iid in sorted(rec.reg_image_ids()):
         im = rec.image(iid)
         cam = rec.camera(im.camera_id)
-        cams[im.name] = {"K": np.asarray(cam.calibration_matrix()), "width": int(cam.width), "height": int(cam.height),
-                         "model": str(cam.model_name), "params": [float(x) for x in cam.params]}
+        cams[im.name] = {
+            "K": np.asarray(cam.calibration_matrix()),
+            "width": int(cam.width),
+            "height": int(cam.height),
+            "model": str(cam.model_name),
+            "params": [float(x) for x in cam.params],
+        }
     pts = np.array([p.xyz for _, p in sorted(rec.points3D.items())], float).reshape(-1, 3)
     S = np.eye(4)  # world <- model similarity (scale folded into points and translations)
     align = None
@@ -140,7 +163,11 @@ def _model(root_s: str) -> dict[str, Any]:
         refp = {k: np.asarray(v, float) for k, v in json.loads(ref.read_text()).items()}
         err = pose_errors(poses, refp)
         S[:3, :3], S[:3, 3] = err["scale"] * err["R"], err["t"]
-        align = {"scale": err["scale"], "max_centre_err_m": err["max_centre_err_m"], "max_rot_err_deg": err["max_rot_err_deg"]}
+        align = {
+            "scale": err["scale"],
+            "max_centre_err_m": err["max_centre_err_m"],
+            "max_rot_err_deg": err["max_rot_err_deg"],
+        }
     s = np.cbrt(np.linalg.det(S[:3, :3]))
     world_poses = {}
     for n, T in poses.items():
@@ -180,13 +207,29 @@ class ColmapReader:
         box_file = config.get("boxes_file") or (root / "boxes.json" if (root / "boxes.json").is_file() else None)
         boxes = load_box_file(Path(box_file)) if box_file else []
         extra = c["params"][4:] if c["model"] in ("PINHOLE", "OPENCV", "FULL_OPENCV") else c["params"][3:]
-        view = ScanView("colmap", root.name, stem, rgb, depth, cam, boxes, "unknown",
-                        points=None if depth is not None else m["points"],
-                        meta={"intrinsics_source": f"colmap:{c['model']}", "distortion_ignored": extra,
-                              "pose_source": "colmap", "alignment": m["align"]})
+        view = ScanView(
+            "colmap",
+            root.name,
+            stem,
+            rgb,
+            depth,
+            cam,
+            boxes,
+            "unknown",
+            points=None if depth is not None else m["points"],
+            meta={
+                "intrinsics_source": f"colmap:{c['model']}",
+                "distortion_ignored": extra,
+                "pose_source": "colmap",
+                "alignment": m["align"],
+            },
+        )
         up = opts.get("up")
         if up is None and m["align"] is not None and opts.get("reference_z_up", True):
             return apply_world_transform(view, np.eye(4), "given", True)
         pts = m["points"] if depth is None else cam.depth_to_points(depth, stride=8)
-        return level_views(view, None if up is None else np.asarray(up, float),
-                           lambda: (pts, np.mean([T[:3, :3] @ np.array([0, -1.0, 0]) for T in m["poses"].values()], axis=0)))
+        return level_views(
+            view,
+            None if up is None else np.asarray(up, float),
+            lambda: (pts, np.mean([T[:3, :3] @ np.array([0, -1.0, 0]) for T in m["poses"].values()], axis=0)),
+        )

@@ -15,8 +15,9 @@ from refspatial_gen.sources.scan.readers import validate as V
 from refspatial_gen.sources.scan.view import ScanBox
 
 
-def camera_from_K(K, width: int, height: int, world_from_cam, pixel_origin: str = "center",
-                  gravity_known: bool = True) -> Camera:
+def camera_from_K(
+    K, width: int, height: int, world_from_cam, pixel_origin: str = "center", gravity_known: bool = True
+) -> Camera:
     """Build a Camera from a 3x3 K. `pixel_origin="center"` is the OpenCV convention (pixel centres at
     integers, as in SUN RGB-D's 0-based K, ScanNet, Open3D, TUM); Camera uses corner origin (pixel i spans
     [i, i+1)), so such K get cx, cy + 0.5. COLMAP and MuJoCo already use the corner origin."""
@@ -28,8 +29,16 @@ def camera_from_K(K, width: int, height: int, world_from_cam, pixel_origin: str 
         raise DropUnit("intrinsics_invalid", f"pixel_origin must be 'center' or 'corner', got {V.short(pixel_origin)}")
     width = V.positive_int(width, "image width", "intrinsics_invalid")
     height = V.positive_int(height, "image height", "intrinsics_invalid")
-    return Camera(width, height, K[0, 0], K[1, 1], K[0, 2] + off, K[1, 2] + off,
-                  V.pose(world_from_cam, "camera pose"), gravity_known)
+    return Camera(
+        width,
+        height,
+        K[0, 0],
+        K[1, 1],
+        K[0, 2] + off,
+        K[1, 2] + off,
+        V.pose(world_from_cam, "camera pose"),
+        gravity_known,
+    )
 
 
 def box_from_json(d: dict[str, Any]) -> Box3D:
@@ -80,9 +89,18 @@ def parse_objects(items: list[dict[str, Any]], where: str) -> list[ScanBox]:
             if n <= 0:
                 raise DropUnit("annotation_invalid", f"{where}: object {k}: front must not be a zero vector")
             front = front / n
-        out.append(ScanBox(oid, cat, box, front, o.get("front_phrase"), o.get("name"),
-                           {str(a): str(b) for a, b in sorted(attrs.items(), key=lambda kv: str(kv[0]))},
-                           {"annotation": where}))
+        out.append(
+            ScanBox(
+                oid,
+                cat,
+                box,
+                front,
+                o.get("front_phrase"),
+                o.get("name"),
+                {str(a): str(b) for a, b in sorted(attrs.items(), key=lambda kv: str(kv[0]))},
+                {"annotation": where},
+            )
+        )
     return out
 
 
@@ -98,15 +116,32 @@ def read_json(path: Path) -> Any:
     try:
         return json.loads(Path(path).read_bytes())
     except OSError as e:
-        raise DropUnit("annotation_missing" if isinstance(e, FileNotFoundError) else "annotation_unreadable",
-                       f"{path}: {e.strerror or e}") from None
+        raise DropUnit(
+            "annotation_missing" if isinstance(e, FileNotFoundError) else "annotation_unreadable",
+            f"{path}: {e.strerror or e}",
+        ) from None
     except (ValueError, RecursionError) as e:  # JSONDecodeError, UnicodeDecodeError
         raise DropUnit("annotation_invalid", f"{path}: not valid JSON ({type(e).__name__})") from None
 
 
-PLY_TYPES = {"float": "<f4", "float32": "<f4", "double": "<f8", "float64": "<f8", "uchar": "u1", "uint8": "u1",
-             "char": "i1", "int8": "i1", "ushort": "<u2", "uint16": "<u2", "short": "<i2", "int16": "<i2",
-             "int": "<i4", "int32": "<i4", "uint": "<u4", "uint32": "<u4"}
+PLY_TYPES = {
+    "float": "<f4",
+    "float32": "<f4",
+    "double": "<f8",
+    "float64": "<f8",
+    "uchar": "u1",
+    "uint8": "u1",
+    "char": "i1",
+    "int8": "i1",
+    "ushort": "<u2",
+    "uint16": "<u2",
+    "short": "<i2",
+    "int16": "<i2",
+    "int": "<i4",
+    "int32": "<i4",
+    "uint": "<u4",
+    "uint32": "<u4",
+}
 
 
 def _ply_header(raw: bytes, path: Path) -> tuple[str, int, list[tuple[str, str]], int]:
@@ -161,8 +196,11 @@ def read_ply_xyz(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
     if fmt == "binary_little_endian":
         dt = np.dtype(props)
         if len(raw) - body < n * dt.itemsize:
-            raise DropUnit("points_unreadable", f"{Path(path).name}: {n} vertices announced, "
-                                                f"{(len(raw) - body) // max(dt.itemsize, 1)} present (truncated?)")
+            raise DropUnit(
+                "points_unreadable",
+                f"{Path(path).name}: {n} vertices announced, "
+                f"{(len(raw) - body) // max(dt.itemsize, 1)} present (truncated?)",
+            )
         arr = np.frombuffer(raw, dtype=dt, count=n, offset=body)
         cols = {k: arr[k] for k in names}
     elif fmt == "ascii":
@@ -170,7 +208,9 @@ def read_ply_xyz(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
         try:
             txt = np.array([[float(x) for x in r.split()[: len(names)]] for r in rows], float).reshape(-1, len(names))
         except ValueError:
-            raise DropUnit("points_unreadable", f"{Path(path).name}: a vertex line is not {len(names)} numbers") from None
+            raise DropUnit(
+                "points_unreadable", f"{Path(path).name}: a vertex line is not {len(names)} numbers"
+            ) from None
         if len(txt) != n:
             raise DropUnit("points_unreadable", f"{Path(path).name}: {n} vertices announced, {len(txt)} present")
         cols = {k: txt[:, i] for i, k in enumerate(names)}

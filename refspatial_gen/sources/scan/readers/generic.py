@@ -43,16 +43,30 @@ from refspatial_gen.sources.scan.view import ScanView
 
 def _K(d: Any) -> tuple[np.ndarray, int, int]:
     d = V.mapping(d, "intrinsics", "intrinsics_invalid")
-    K = np.array([[V.number(d.get("fx"), "fx", "intrinsics_invalid"), 0, V.number(d.get("cx"), "cx", "intrinsics_invalid")],
-                  [0, V.number(d.get("fy"), "fy", "intrinsics_invalid"), V.number(d.get("cy"), "cy", "intrinsics_invalid")],
-                  [0, 0, 1.0]], float)
-    return K, V.positive_int(d.get("width"), "width", "intrinsics_invalid"), \
-        V.positive_int(d.get("height"), "height", "intrinsics_invalid")
+    K = np.array(
+        [
+            [V.number(d.get("fx"), "fx", "intrinsics_invalid"), 0, V.number(d.get("cx"), "cx", "intrinsics_invalid")],
+            [0, V.number(d.get("fy"), "fy", "intrinsics_invalid"), V.number(d.get("cy"), "cy", "intrinsics_invalid")],
+            [0, 0, 1.0],
+        ],
+        float,
+    )
+    return (
+        K,
+        V.positive_int(d.get("width"), "width", "intrinsics_invalid"),
+        V.positive_int(d.get("height"), "height", "intrinsics_invalid"),
+    )
 
 
 def _frame_id(f: Any, k: int) -> str:
-    if isinstance(f, dict) and isinstance(f.get("id"), (str, int)) and not isinstance(f.get("id"), bool) \
-            and str(f["id"]) and not str(f["id"]).startswith("!") and "#" not in str(f["id"]):
+    if (
+        isinstance(f, dict)
+        and isinstance(f.get("id"), (str, int))
+        and not isinstance(f.get("id"), bool)
+        and str(f["id"])
+        and not str(f["id"]).startswith("!")
+        and "#" not in str(f["id"])
+    ):
         return str(f["id"])
     return f"!frame{k}"
 
@@ -66,8 +80,10 @@ def _meta(root: Path) -> tuple[dict, list]:
 def _encoding(meta: dict) -> str:
     enc = meta.get("depth_encoding", "mm")
     if enc not in DEPTH_ENCODINGS:
-        raise DropUnit("annotation_invalid", f"scan.json depth_encoding must be one of {', '.join(DEPTH_ENCODINGS)}, "
-                                             f"got {V.short(enc)}")
+        raise DropUnit(
+            "annotation_invalid",
+            f"scan.json depth_encoding must be one of {', '.join(DEPTH_ENCODINGS)}, got {V.short(enc)}",
+        )
     return enc
 
 
@@ -95,21 +111,36 @@ class GenericReader:
         if not matches:
             raise DropUnit("frame_missing", f"{root}: no frame {view_id}")
         if view_id.startswith("!") or len(matches) > 1:
-            raise DropUnit("annotation_invalid", f"scan.json {view_id}: "
-                                                 f"{'listed twice' if len(matches) > 1 else 'no usable id'}")
+            raise DropUnit(
+                "annotation_invalid", f"scan.json {view_id}: {'listed twice' if len(matches) > 1 else 'no usable id'}"
+            )
         f = matches[0]
         if f.get("world_from_cam") is None:
             raise DropUnit("pose_missing", f"{root}: frame {view_id} has no pose")
         K, W, H = _K(f.get("intrinsics") or meta.get("intrinsics"))
         pose = to_h(f["world_from_cam"])
         rgb = read_rgb(V.file_in(root, f.get("image"), f"frame {view_id} image"))
-        depth = read_depth(V.file_in(root, f["depth"], f"frame {view_id} depth"), _encoding(meta)) if f.get("depth") else None
+        depth = (
+            read_depth(V.file_in(root, f["depth"], f"frame {view_id} depth"), _encoding(meta))
+            if f.get("depth")
+            else None
+        )
         per_frame = bool(meta.get("boxes_per_frame", False))
         boxes = parse_objects(f.get("objects", []) if per_frame else meta.get("objects", []), f"scan.json:{view_id}")
         cam = camera_from_K(K, W, H, pose, str(meta.get("pixel_origin", "center")))
         scene_id = meta.get("scene_id", root.name)
-        view = ScanView("generic", str(scene_id), view_id, rgb, depth, cam, boxes, "given",
-                        boxes_per_frame=per_frame, meta={"intrinsics_source": "scan.json"})
+        view = ScanView(
+            "generic",
+            str(scene_id),
+            view_id,
+            rgb,
+            depth,
+            cam,
+            boxes,
+            "given",
+            boxes_per_frame=per_frame,
+            meta={"intrinsics_source": "scan.json"},
+        )
         up = meta.get("up")
         if up is not None:
             up = V.matrix(up, ((3,),), "scan.json up")
@@ -125,7 +156,7 @@ def _all_points(root_s: str) -> tuple[np.ndarray, np.ndarray]:
     root = Path(root_s)
     meta, frames = _meta(root)
     pts, ups = [], []
-    for k, f in sorted(enumerate(frames), key=lambda kf: _frame_id(kf[1], kf[0])):
+    for _k, f in sorted(enumerate(frames), key=lambda kf: _frame_id(kf[1], kf[0])):
         if not isinstance(f, dict) or f.get("world_from_cam") is None or not f.get("depth"):
             continue
         try:

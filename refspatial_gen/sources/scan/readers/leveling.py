@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -22,8 +22,9 @@ def apply_world_transform(view: ScanView, T: np.ndarray, gravity_source: str, kn
     return view
 
 
-def level_views(view: ScanView, up: np.ndarray | None,
-                scene_points: Callable[[], tuple[np.ndarray, np.ndarray]]) -> ScanView:
+def level_views(
+    view: ScanView, up: np.ndarray | None, scene_points: Callable[[], tuple[np.ndarray, np.ndarray]]
+) -> ScanView:
     """`up` given -> rotate it onto +z ("given"). Otherwise fit the floor over the scene's points
     ("floor_plane", floor at z = 0); no floor -> gravity unknown, world left as it is."""
     if up is not None:

@@ -39,9 +39,13 @@ def quat_to_R(q: dict[str, float]) -> np.ndarray:
     if n < 1e-12:
         raise DropUnit("pose_invalid", "zero quaternion")
     x, y, z, w = x / n, y / n, z / n, w / n
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 def _pb_class(schema_name: str):
@@ -74,7 +78,7 @@ def decode_message(schema_name: str, encoding: str, data: bytes) -> dict[str, An
         except (ImportError, AttributeError):
             raise DropUnit("message_undecodable", f"unknown schema {schema_name!r}") from None
         d = MessageToDict(msg, preserving_proto_field_name=True)
-        if hasattr(msg, "data") and isinstance(getattr(msg, "data"), bytes):
+        if hasattr(msg, "data") and isinstance(msg.data, bytes):
             d["data"] = bytes(msg.data)
         return d
     raise DropUnit("message_undecodable", f"message encoding {encoding!r} not supported")
@@ -98,11 +102,15 @@ def _index(path: str) -> dict[str, Any]:
             name = schema.name if schema is not None else ""
             topics[channel.topic] = (name, channel.message_encoding)
             times.setdefault(channel.topic, []).append(int(msg.log_time))
-            kind = {"foxglove.CameraCalibration": "calib", "foxglove.FrameTransform": "tf",
-                    "foxglove.FrameTransforms": "tf", "foxglove.SceneUpdate": "scene"}.get(name)
+            kind = {
+                "foxglove.CameraCalibration": "calib",
+                "foxglove.FrameTransform": "tf",
+                "foxglove.FrameTransforms": "tf",
+                "foxglove.SceneUpdate": "scene",
+            }.get(name)
             if kind:
                 d = decode_message(name, channel.message_encoding, msg.data)
-                for t in (d.get("transforms", [d]) if name == "foxglove.FrameTransforms" else [d]):
+                for t in d.get("transforms", [d]) if name == "foxglove.FrameTransforms" else [d]:
                     small[kind].append((int(msg.log_time), t))
     return {"topics": topics, "times": {k: sorted(v) for k, v in times.items()}, **small}
 
@@ -216,7 +224,9 @@ class McapReader:
             raise DropUnit("intrinsics_missing", f"no CameraCalibration for frame {frame_id!r}")
         c = calib[-1]
         K = np.array(c["K"], float).reshape(3, 3)
-        tfs = [(tt, d) for tt, d in idx["tf"] if d.get("child_frame_id") == frame_id and d.get("parent_frame_id") == world]
+        tfs = [
+            (tt, d) for tt, d in idx["tf"] if d.get("child_frame_id") == frame_id and d.get("parent_frame_id") == world
+        ]
         near = [(abs(tt - t), tt, d) for tt, d in tfs if _stamp_ok(tt, t, max_dt)]
         if not near:
             raise DropUnit("pose_missing", f"no {world}->{frame_id} transform within {max_dt / 1e9:.3f} s of {t}")
@@ -227,17 +237,38 @@ class McapReader:
         T[:3, 3] = [float(tr.get(k, 0.0)) for k in ("x", "y", "z")]
         cam = camera_from_K(K, int(c["width"]), int(c["height"]), T, "center", gravity_known=False)
         boxes = self._boxes(path, idx, world, t, config)
-        view = ScanView("mcap", Path(path).stem, view_id.replace(":", "_"), rgb, depth, cam, boxes, "unknown",
-                        meta={"intrinsics_source": "CameraCalibration", "pose_source": "FrameTransform",
-                              "color_topic": topic, "depth_topic": dtopic})
+        view = ScanView(
+            "mcap",
+            Path(path).stem,
+            view_id.replace(":", "_"),
+            rgb,
+            depth,
+            cam,
+            boxes,
+            "unknown",
+            meta={
+                "intrinsics_source": "CameraCalibration",
+                "pose_source": "FrameTransform",
+                "color_topic": topic,
+                "depth_topic": dtopic,
+            },
+        )
         up = opts.get("up")
-        return level_views(view, None if up is None else np.asarray(up, float),
-                           lambda: (cam.depth_to_points(depth, stride=8) if depth.shape == (cam.height, cam.width)
-                                    and np.all(np.isfinite(depth)) else np.zeros((0, 3)),
-                                    cam.world_from_cam[:3, :3] @ np.array([0.0, -1.0, 0.0])))
+        return level_views(
+            view,
+            None if up is None else np.asarray(up, float),
+            lambda: (
+                cam.depth_to_points(depth, stride=8)
+                if depth.shape == (cam.height, cam.width) and np.all(np.isfinite(depth))
+                else np.zeros((0, 3)),
+                cam.world_from_cam[:3, :3] @ np.array([0.0, -1.0, 0.0]),
+            ),
+        )
 
     def _boxes(self, path: str, idx: dict[str, Any], world: str, t: int, config: dict[str, Any]) -> list[ScanBox]:
-        side = config.get("boxes_file") or (Path(path).with_suffix(".boxes.json") if Path(path).with_suffix(".boxes.json").is_file() else None)
+        side = config.get("boxes_file") or (
+            Path(path).with_suffix(".boxes.json") if Path(path).with_suffix(".boxes.json").is_file() else None
+        )
         if side:
             return load_box_file(Path(side))
         updates = [d for tt, d in idx["scene"] if tt <= t]
@@ -261,11 +292,20 @@ class McapReader:
             pos = pose.get("position", {})
             size = cube.get("size", {})
             try:
-                box = Box3D(np.array([float(pos.get(a, 0.0)) for a in "xyz"]),
-                            np.array([float(size.get(a, 0.0)) for a in "xyz"]), quat_to_R(pose.get("orientation", {"w": 1.0})))
+                box = Box3D(
+                    np.array([float(pos.get(a, 0.0)) for a in "xyz"]),
+                    np.array([float(size.get(a, 0.0)) for a in "xyz"]),
+                    quat_to_R(pose.get("orientation", {"w": 1.0})),
+                )
                 oid = int(meta.get("id", k + 1))
             except ValueError as ex:
                 raise DropUnit("annotation_invalid", f"scene entity {eid}: {ex}") from ex
-            boxes.append(ScanBox(oid, str(meta.get("category", eid.rstrip("0123456789_-"))), box,
-                                 provenance={"annotation": "SceneUpdate", "entity_id": eid}))
+            boxes.append(
+                ScanBox(
+                    oid,
+                    str(meta.get("category", eid.rstrip("0123456789_-"))),
+                    box,
+                    provenance={"annotation": "SceneUpdate", "entity_id": eid},
+                )
+            )
         return boxes

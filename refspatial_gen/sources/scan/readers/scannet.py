@@ -40,8 +40,13 @@ def _meta_cached(root: str, stamp: tuple | None) -> tuple[dict, list]:
 
 def _view_id(f: Any, k: int) -> str:
     """A frame's view id: its image's stem; a malformed entry gets `!frame<k>` (dropped when read)."""
-    if isinstance(f, dict) and isinstance(f.get("image"), str) and Path(f["image"]).stem \
-            and "#" not in f["image"] and not Path(f["image"]).stem.startswith("!"):
+    if (
+        isinstance(f, dict)
+        and isinstance(f.get("image"), str)
+        and Path(f["image"]).stem
+        and "#" not in f["image"]
+        and not Path(f["image"]).stem.startswith("!")
+    ):
         return Path(f["image"]).stem
     return f"!frame{k}"
 
@@ -70,8 +75,11 @@ def _boxes(meta: dict, root: Path) -> list[ScanBox]:
                 raise DropUnit("annotation_invalid", "category must be a name")
         except DropUnit as e:
             raise DropUnit(e.reason, f"{root.name}/scene.json object {k}: {e.detail}") from None
-        boxes.append(ScanBox(oid + 1, o["category"], box,
-                             provenance={"annotation": "scannet", "nyu40_name": o.get("nyu40_name")}))
+        boxes.append(
+            ScanBox(
+                oid + 1, o["category"], box, provenance={"annotation": "scannet", "nyu40_name": o.get("nyu40_name")}
+            )
+        )
     return boxes
 
 
@@ -117,8 +125,10 @@ class ScanNetReader:
         if not matches:
             raise DropUnit("frame_missing", f"{root}: no frame {view_id}")
         if view_id.startswith("!") or len(matches) > 1:
-            raise DropUnit("annotation_invalid", f"{root.name}/scene.json {view_id}: "
-                                                 f"{'listed twice' if len(matches) > 1 else 'no image file name'}")
+            raise DropUnit(
+                "annotation_invalid",
+                f"{root.name}/scene.json {view_id}: {'listed twice' if len(matches) > 1 else 'no image file name'}",
+            )
         f = matches[0]
         if f.get("cam_to_world") is None:
             raise DropUnit("pose_missing", f"{root}: frame {view_id} has no pose")
@@ -133,9 +143,19 @@ class ScanNetReader:
         pts = _points(str(root), meta.get("points_file", "points_raw.ply"), tuple(A.reshape(-1).tolist()))
         if len(pts) == 0:
             raise DropUnit("points_missing", f"{root}: no point cloud to derive depth from")
-        view = ScanView("scannet", str(meta.get("scene_id", root.name)), view_id, rgb, None, cam, boxes,
-                        "scan_z_up", boxes_per_frame=False, points=pts,
-                        meta={"intrinsics_source": "K_color"})
+        view = ScanView(
+            "scannet",
+            str(meta.get("scene_id", root.name)),
+            view_id,
+            rgb,
+            None,
+            cam,
+            boxes,
+            "scan_z_up",
+            boxes_per_frame=False,
+            points=pts,
+            meta={"intrinsics_source": "K_color"},
+        )
         if (config or {}).get("instance_labels", True):
             from refspatial_gen.sources.scan.labels import box_instances
 
@@ -143,10 +163,15 @@ class ScanNetReader:
             view.meta["instance_labels"] = note if labels is not None else f"none ({note})"
             if labels is not None:
                 try:
-                    explicit = {int(o["id"]) + 1: (int(o["instance_id"]) if "instance_id" in o else int(o["object_id"]) + 1)
-                                for o in meta.get("objects", []) if "instance_id" in o or "object_id" in o}
+                    explicit = {
+                        int(o["id"]) + 1: (int(o["instance_id"]) if "instance_id" in o else int(o["object_id"]) + 1)
+                        for o in meta.get("objects", [])
+                        if "instance_id" in o or "object_id" in o
+                    }
                 except (TypeError, ValueError, OverflowError) as e:
-                    raise DropUnit("annotation_invalid", f"{root.name}/scene.json: instance_id/object_id: {e}") from None
+                    raise DropUnit(
+                        "annotation_invalid", f"{root.name}/scene.json: instance_id/object_id: {e}"
+                    ) from None
                 view.point_labels = labels
                 view.box_instance = box_instances(boxes, pts, labels, explicit)
                 view.meta["structural_instances"] = sorted(structural)

@@ -25,8 +25,9 @@ F = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
 
 def _is_sample(p: Path) -> bool:
     try:
-        return (p / "annotation.json").is_file() and \
-            '"Rtilt"' in (p / "annotation.json").read_text(encoding="utf-8", errors="replace")
+        return (p / "annotation.json").is_file() and '"Rtilt"' in (p / "annotation.json").read_text(
+            encoding="utf-8", errors="replace"
+        )
     except OSError:
         return False
 
@@ -62,8 +63,18 @@ class SunRGBDReader:
         cam = camera_from_K(ann.get("K"), W, H, T, pixel_origin="center", gravity_known=True)
         boxes = [_box(o, k, folder) for k, o in enumerate(V.listing(ann.get("objects", []), f"{folder}: objects"))]
         scene = folder.resolve().name
-        return ScanView("sunrgbd", scene, scene, rgb, depth, cam, boxes, "rtilt", boxes_per_frame=True,
-                        meta={"intrinsics_source": "annotation", "depth_source": "sensor"})
+        return ScanView(
+            "sunrgbd",
+            scene,
+            scene,
+            rgb,
+            depth,
+            cam,
+            boxes,
+            "rtilt",
+            boxes_per_frame=True,
+            meta={"intrinsics_source": "annotation", "depth_source": "sensor"},
+        )
 
 
 def _box(o: Any, k: int, folder: Path) -> ScanBox:
@@ -80,8 +91,12 @@ def _box(o: Any, k: int, folder: Path) -> ScanBox:
         prov: dict[str, Any] = {"annotation": "sunrgbd"}
         if b2 is not None:  # 1-based MATLAB pixel corners -> 0-based
             b2 = V.matrix(b2, ((4,),), "bbox2d_xyxy")
-            prov["bbox2d_annotated"] = [round(float(b2[0]) - 1, 3), round(float(b2[1]) - 1, 3),
-                                        round(float(b2[2]) - 1, 3), round(float(b2[3]) - 1, 3)]
+            prov["bbox2d_annotated"] = [
+                round(float(b2[0]) - 1, 3),
+                round(float(b2[1]) - 1, 3),
+                round(float(b2[2]) - 1, 3),
+                round(float(b2[3]) - 1, 3),
+            ]
     except DropUnit as e:
         raise DropUnit(e.reason, f"{folder}: object {k}: {e.detail}") from None
     return ScanBox(k + 1, o["category"], box, provenance=prov)

@@ -50,9 +50,13 @@ def _quat_pose(t, q) -> np.ndarray:
     x, y, z, w = q
     n = np.sqrt(x * x + y * y + z * z + w * w)
     x, y, z, w = x / n, y / n, z / n, w / n
-    R = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                  [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                  [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    R = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
     T = np.eye(4)
     T[:3, :3], T[:3, 3] = R, t
     return T
@@ -115,9 +119,14 @@ def _camera_json(path: Path) -> dict[str, Any]:
     except DropUnit as e:
         raise DropUnit("intrinsics_invalid", e.detail) from None
     K = V.matrix(c.get("intrinsic_matrix"), ((3, 3),), f"{path.name} intrinsic_matrix", "intrinsics_invalid").T
-    return {"width": V.positive_int(c.get("width"), f"{path.name} width", "intrinsics_invalid"),
-            "height": V.positive_int(c.get("height"), f"{path.name} height", "intrinsics_invalid"),
-            "fx": K[0, 0], "fy": K[1, 1], "cx": K[0, 2], "cy": K[1, 2]}
+    return {
+        "width": V.positive_int(c.get("width"), f"{path.name} width", "intrinsics_invalid"),
+        "height": V.positive_int(c.get("height"), f"{path.name} height", "intrinsics_invalid"),
+        "fx": K[0, 0],
+        "fy": K[1, 1],
+        "cx": K[0, 2],
+        "cy": K[1, 2],
+    }
 
 
 def _intrinsics(it: Any) -> tuple[np.ndarray, int, int]:
@@ -125,8 +134,11 @@ def _intrinsics(it: Any) -> tuple[np.ndarray, int, int]:
     it = V.mapping(it, "intrinsics", "intrinsics_invalid")
     num = {k: V.number(it.get(k), f"intrinsics {k}", "intrinsics_invalid") for k in ("fx", "fy", "cx", "cy")}
     K = np.array([[num["fx"], 0, num["cx"]], [0, num["fy"], num["cy"]], [0, 0, 1.0]])
-    return K, V.positive_int(it.get("width"), "intrinsics width", "intrinsics_invalid"), \
-        V.positive_int(it.get("height"), "intrinsics height", "intrinsics_invalid")
+    return (
+        K,
+        V.positive_int(it.get("width"), "intrinsics width", "intrinsics_invalid"),
+        V.positive_int(it.get("height"), "intrinsics height", "intrinsics_invalid"),
+    )
 
 
 def _nearest(ts: float, items: list[tuple[float, list[str]]], max_dt: float) -> list[str] | None:
@@ -186,7 +198,9 @@ def _sequence(seq_dir: str, encoding: str, intr_json: str) -> dict[str, Any]:
     elif layout == "pairs":
         for c in sorted(p for p in d.iterdir() if p.suffix.lower() in IMG and "_color" in p.stem.lower()):
             stem = c.stem[: c.stem.lower().index("_color")]
-            cands = sorted(p for p in d.iterdir() if p.stem.lower().startswith(stem.lower() + "_depth") and p.suffix == ".png")
+            cands = sorted(
+                p for p in d.iterdir() if p.stem.lower().startswith(stem.lower() + "_depth") and p.suffix == ".png"
+            )
             raw = [p for p in cands if "_mm" not in p.stem.lower()]
             dp = (raw or cands or [None])[0]
             e = enc
@@ -213,8 +227,11 @@ class TrajectoryReader:
 
     def _seq(self, root: Path, seq: str, config: dict[str, Any]) -> dict[str, Any]:
         intr = config.get("intrinsics")
-        return _sequence(str((Path(root) / seq).resolve()), str(config.get("depth_encoding") or "auto"),
-                         json.dumps(intr, sort_keys=True) if intr else "")
+        return _sequence(
+            str((Path(root) / seq).resolve()),
+            str(config.get("depth_encoding") or "auto"),
+            json.dumps(intr, sort_keys=True) if intr else "",
+        )
 
     def views(self, root: Path, config: dict[str, Any]) -> list[str]:
         return [f"{s}/{fid}" for s in self._sequences(root) for fid in sorted(self._seq(root, s, config)["frames"])]
@@ -242,13 +259,28 @@ class TrajectoryReader:
         pmeta: dict[str, Any] = {}
         if not boxes and config.get("perception"):  # no box file: objects from local models (docs/perception.md)
             from refspatial_gen.perception.scan import fused_boxes
+
             boxes, pmeta = fused_boxes(type(self), root, seq, view_id, f["pose"] is not None, config)
         scene = seq_dir.name
-        view = ScanView("rgbd_trajectory", scene, view_id if seq != "." else fid, rgb, depth, cam, boxes, "unknown",
-                        boxes_per_frame=False,
-                        meta={"intrinsics_source": info["intrinsics_source"], "depth_encoding": f["encoding"],
-                              "pose_source": "identity" if f["pose"] is None else "trajectory",
-                              "layout": info["layout"], "has_boxes": bool(boxes), **pmeta})
+        view = ScanView(
+            "rgbd_trajectory",
+            scene,
+            view_id if seq != "." else fid,
+            rgb,
+            depth,
+            cam,
+            boxes,
+            "unknown",
+            boxes_per_frame=False,
+            meta={
+                "intrinsics_source": info["intrinsics_source"],
+                "depth_encoding": f["encoding"],
+                "pose_source": "identity" if f["pose"] is None else "trajectory",
+                "layout": info["layout"],
+                "has_boxes": bool(boxes),
+                **pmeta,
+            },
+        )
         frames_key = (str(seq_dir), json.dumps(sorted(info["frames"]))) if f["pose"] is not None else None
         return level_views(view, None, lambda: _scene_points(self, str(root), seq, fid, config, frames_key))
 
@@ -258,8 +290,9 @@ def _frame_file(seq_dir: Path, f: dict[str, Any], key: str) -> Path:
     return V.file_in(seq_dir, f[key], key) if f.get("rel") else f[key]
 
 
-def _scene_points(reader: TrajectoryReader, root: str, seq: str, fid: str, config: dict[str, Any],
-                  frames_key) -> tuple[np.ndarray, np.ndarray]:
+def _scene_points(
+    reader: TrajectoryReader, root: str, seq: str, fid: str, config: dict[str, Any], frames_key
+) -> tuple[np.ndarray, np.ndarray]:
     """Points for the floor fit: the whole posed sequence (cached), or just this frame when unposed."""
     if frames_key is not None:
         return _posed_points(reader, root, seq, json.dumps(config, sort_keys=True, default=str))

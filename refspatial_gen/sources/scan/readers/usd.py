@@ -73,9 +73,14 @@ def _stage(path: str) -> dict[str, Any]:
             lo, hi = np.array(rng.GetMin()), np.array(rng.GetMax())
             A = M[:3, :3]
             norms = np.linalg.norm(A, axis=0)
-            boxes.append(ScanBox(len(boxes) + 1, label,
-                                 Box3D(M[:3, :3] @ ((lo + hi) / 2) + M[:3, 3], (hi - lo) * norms, A / norms),
-                                 provenance={"annotation": "usd", "prim": str(prim.GetPath())}))
+            boxes.append(
+                ScanBox(
+                    len(boxes) + 1,
+                    label,
+                    Box3D(M[:3, :3] @ ((lo + hi) / 2) + M[:3, 3], (hi - lo) * norms, A / norms),
+                    provenance={"annotation": "usd", "prim": str(prim.GetPath())},
+                )
+            )
         if prim.IsA(UsdGeom.Mesh) or prim.IsA(UsdGeom.Cube):
             W = L @ _m(xf.GetLocalToWorldTransform(prim))
             colour = (0.7, 0.7, 0.7, 1.0)
@@ -96,8 +101,14 @@ def _stage(path: str) -> dict[str, Any]:
                 for c in counts:  # fan triangulation
                     tris += [[idx[k], idx[k + j], idx[k + j + 1]] for j in range(1, c - 1)]
                     k += c
-                geoms.append(RenderGeom(str(prim.GetPath()), vertices=pts @ W[:3, :3].T + W[:3, 3],
-                                        faces=np.array(tris, int), rgba=colour))
+                geoms.append(
+                    RenderGeom(
+                        str(prim.GetPath()),
+                        vertices=pts @ W[:3, :3].T + W[:3, 3],
+                        faces=np.array(tris, int),
+                        rgba=colour,
+                    )
+                )
         if prim.IsA(UsdGeom.Camera):
             cam = UsdGeom.Camera(prim).GetCamera(Usd.TimeCode.Default())
             W = L @ _m(xf.GetLocalToWorldTransform(prim))
@@ -128,8 +139,10 @@ class UsdReader:
         opts = config.get("options") or {}
         if opts.get("views"):
             fovy = float(opts.get("fovy", 60.0))
-            return {f"view{k:03d}": (look_at(np.array(v["eye"], float), np.array(v["target"], float)), fovy)
-                    for k, v in enumerate(opts["views"])}
+            return {
+                f"view{k:03d}": (look_at(np.array(v["eye"], float), np.array(v["target"], float)), fovy)
+                for k, v in enumerate(opts["views"])
+            }
         return st["cams"]
 
     def views(self, root: Path, config: dict[str, Any]) -> list[str]:
@@ -147,8 +160,21 @@ class UsdReader:
         cam = render_camera(int(opts.get("width", 640)), int(opts.get("height", 480)), fovy, T)
         if not st["geoms"]:
             raise DropUnit("stage_empty", f"{f}: no mesh or cube to render")
-        (rgb, depth, _), = render(st["geoms"], [cam])
-        return ScanView("usd", f.stem, view_id, rgb, depth, cam, list(st["boxes"]), "given", boxes_per_frame=False,
-                        meta={"intrinsics_source": "usd_camera" if not opts.get("views") else "recipe",
-                              "depth_source": "rendered", "up_axis": st["up_axis"],
-                              "meters_per_unit": st["meters_per_unit"]})
+        ((rgb, depth, _),) = render(st["geoms"], [cam])
+        return ScanView(
+            "usd",
+            f.stem,
+            view_id,
+            rgb,
+            depth,
+            cam,
+            list(st["boxes"]),
+            "given",
+            boxes_per_frame=False,
+            meta={
+                "intrinsics_source": "usd_camera" if not opts.get("views") else "recipe",
+                "depth_source": "rendered",
+                "up_axis": st["up_axis"],
+                "meters_per_unit": st["meters_per_unit"],
+            },
+        )

@@ -30,8 +30,14 @@ def number(v: Any, what: str, reason: str = "annotation_invalid") -> float:
 
 
 def positive_int(v: Any, what: str, reason: str = "annotation_invalid") -> int:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v != int(v) or v <= 0 \
-            or v > 1_000_000:
+    if (
+        isinstance(v, bool)
+        or not isinstance(v, (int, float))
+        or not math.isfinite(v)
+        or v != int(v)
+        or v <= 0
+        or v > 1_000_000
+    ):
         raise DropUnit(reason, f"{what} must be a positive integer, got {short(v)}")
     return int(v)
 
@@ -48,8 +54,7 @@ def matrix(v: Any, shapes: tuple[tuple[int, ...], ...], what: str, reason: str =
     for s in shapes:
         if a.shape == s or (a.ndim == 1 and a.size == int(np.prod(s))):
             return np.array([number(x, what, reason) for x in flat], float).reshape(s)
-    raise DropUnit(reason, f"{what} must be {' or '.join('x'.join(map(str, s)) for s in shapes)}, got shape "
-                           f"{a.shape}")
+    raise DropUnit(reason, f"{what} must be {' or '.join('x'.join(map(str, s)) for s in shapes)}, got shape {a.shape}")
 
 
 def pose(v: Any, what: str) -> np.ndarray:
