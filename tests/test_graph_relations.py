@@ -32,23 +32,18 @@ def test_front_behind(ya, yb, front):
     check(fr, g, "behind", (2, 1), front)
 
 
-def test_left_right_undecided_when_extents_overlap():
-    """A box on the right half of a wide tray's x-range (in front of it) is not "right of the tray": the two
-    camera-x extents overlap. Disjoint extents stay decided."""
-    tray = box(0.0, 0.15, (0.50, 0.12, 0.03))
-    fr, g = scene(("tray", "red", tray), ("box", "blue", box(0.16, -0.2, (0.05, 0.05, 0.06))))
+def test_left_right_front_undecided_when_boxes_overlap():
+    """A box standing on the right half of a deep tray is neither "right of" nor "behind" the tray: their
+    footprints intersect and the box's x and depth ranges lie within the tray's. A box beside the tray
+    (disjoint footprints) stays decided."""
+    tray = box(0.0, 0.0, (0.50, 0.30, 0.03))
+    fr, g = scene(("tray", "red", tray), ("box", "blue", box(0.16, 0.08, (0.05, 0.05, 0.06), z0=TOP + 0.03)))
     check(fr, g, "left", (1, 2), None)
     check(fr, g, "right", (2, 1), None)
-    fr, g = scene(("tray", "red", tray), ("box", "blue", box(0.32, -0.2, (0.05, 0.05, 0.06))))
-    check(fr, g, "right", (2, 1), True)
-
-
-def test_front_behind_undecided_when_depth_extents_overlap():
-    """A deep box whose nearest face is 15 cm nearer but whose depth range overlaps the other's is not "in
-    front of" it (nearest faces alone said it was)."""
-    fr, g = scene(("box", "red", box(-0.15, 0.0, (0.08, 0.20, 0.06))), ("box", "blue", box(0.15, 0.08, (0.08, 0.05, 0.06))))
     check(fr, g, "front", (1, 2), None)
     check(fr, g, "behind", (2, 1), None)
+    fr, g = scene(("tray", "red", tray), ("box", "blue", box(0.32, 0.08, (0.05, 0.05, 0.06))))
+    check(fr, g, "right", (2, 1), True)
 
 
 # ------------------------------------------------------------------ above / below (image)

@@ -158,19 +158,6 @@ class Frame:
             "meta": self.meta,
         }
 
-    def as_stored(self) -> Frame:
-        """This frame exactly as a shard stores it: the metadata through the canonical JSON (boxes, camera
-        and fronts rounded as `to_json` rounds them), depth as little-endian float32. Why: `verify`
-        re-evaluates every relation on the stored frame, so the graph and the QA pairs must be built on the
-        same numbers; a value within rounding of a margin otherwise decides one way in the generator and
-        the other way in the verifier."""
-        import json
-
-        from refspatial_gen.core.serialize import dumps
-
-        depth = np.ascontiguousarray(self.depth, dtype="<f4")
-        return Frame.from_meta_json(json.loads(dumps(self.meta_json())), self.rgb, depth)
-
     @classmethod
     def from_meta_json(cls, d: dict[str, Any], rgb: np.ndarray, depth: np.ndarray) -> Frame:
         return cls(
