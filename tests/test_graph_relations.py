@@ -74,7 +74,8 @@ def test_above_world_undecided_side_by_side():
     """Standing side by side, a tall box is not "above" a short one, however far apart their centres; two
     thin boxes (thinner than the stack tolerance) side by side at one level are not a stack either way (the
     sign of a 1e-7 m centre difference decided it)."""
-    fr, g = scene(("box", "red", box(-0.15, 0.0, (0.08, 0.08, 0.30))), ("box", "blue", box(0.15, 0.0, (0.08, 0.08, 0.05))))
+    tall, short = box(-0.15, 0.0, (0.08, 0.08, 0.30)), box(0.15, 0.0, (0.08, 0.08, 0.05))
+    fr, g = scene(("box", "red", tall), ("box", "blue", short))
     check(fr, g, "above_world", (1, 2), None)
     check(fr, g, "below_world", (2, 1), None)
     flat = (0.10, 0.06, 0.008)

@@ -104,10 +104,8 @@ def test_stored_graph_decides_as_the_geometry():
 
     top = TABLE.top_z
     heights = [0.05, 0.040004, 0.030001, 0.0600049]
-    boxes = [
-        ("box", "red", Box3D(np.array([-0.2 + 0.13 * k, 0.03 * (k % 2), top + h / 2]), np.array([0.05, 0.05, h]), np.eye(3)))
-        for k, h in enumerate(heights)
-    ]
+    centres = [np.array([-0.2 + 0.13 * k, 0.03 * (k % 2), top + h / 2]) for k, h in enumerate(heights)]
+    boxes = [("box", "red", Box3D(c, np.array([0.05, 0.05, h]), np.eye(3))) for c, h in zip(centres, heights)]
     frame = toy_frame(np.random.default_rng(0), boxes=boxes, frame_id="toy:heights")
     graph = build_graph(frame)
     tables, geom = RelationTables(graph), geometry(frame, {"scale": graph.meta["scale"]})

@@ -28,7 +28,6 @@ from refspatial_gen.graph.relations.common import (
 from refspatial_gen.graph.relations.lookup import pair_cell, pair_table
 from refspatial_gen.graph.scene import SceneGeom
 
-
 OVERLAP_SHARE = 0.5  # extents sharing more than this share of the shorter one along the axis: undecided
 
 
