@@ -146,6 +146,9 @@ def _check_graph(frame):
     res = resolver(frame)
     masks = {o.id: o.mask.decode() for o in frame.objects}
     for n in g.nodes:
+        if n.point is None:  # below the visibility floor: no answer point and no phrase
+            assert n.attributes.get("below_floor") and not n.phrases
+            continue
         x, y = (
             min(frame.camera.width - 1, int(n.point[0] * frame.camera.width)),
             min(frame.camera.height - 1, int(n.point[1] * frame.camera.height)),

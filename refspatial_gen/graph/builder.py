@@ -16,10 +16,11 @@ from refspatial_gen.graph.relations import all_facts
 from refspatial_gen.graph.relations.orientation import horizontal_fronts
 from refspatial_gen.graph.scene import SceneGeom
 from refspatial_gen.graph.support import get_supports
+from refspatial_gen.graph.visibility import Floor, apply_floor, floor_of
 
 ROOM_OBJECT_SIZE = 0.8  # m: a frame with an object this large (or spread over ROOM_SPREAD) is a room
 ROOM_SPREAD = 3.0
-CONFIG_KEYS = {"scale", "thresholds", "free_space", "fit_gravity"}
+CONFIG_KEYS = {"scale", "thresholds", "free_space", "fit_gravity", "truth"}
 
 
 def decide_scale(frame: Frame) -> str:
@@ -107,7 +108,14 @@ def make_nodes(geom: SceneGeom) -> list[Node]:
             "category_count": len(groups[o.category]),
             "front": _exact(hf[i]) if np.isfinite(hf[i]).all() else None,
             "surface": roots[i],
+            "visible_fraction": round(float(o.visible_fraction), 4),
+            "in_view": round(float(geom.in_view[i]), 4),
+            "metric": geom.metric_why[i] is None,
         }
+        if geom.floor_why[i] is not None:
+            attrs["below_floor"] = geom.floor_why[i]
+        if geom.metric_why[i] is not None:
+            attrs["metric_check"] = geom.metric_why[i]
         s = supports[i]
         pt = None if geom.points[i] is None else (float(geom.points[i][0]), float(geom.points[i][1]))
         nodes.append(Node(int(o.id), o.category, attrs, phrases[i], pt, None if s is None else s.label))
@@ -118,10 +126,11 @@ def build_graph(frame: Frame, config: dict[str, Any] | None = None) -> SceneGrap
     """The metric scene graph of one frame (see the package docstring for what it holds)."""
     config = dict(config or {})
     geom = geometry(frame, config)
-    return graph_from_geometry(geom, free_space=bool(config.get("free_space", True)))
+    return graph_from_geometry(geom, free_space=bool(config.get("free_space", True)), floor=floor_of(config))
 
 
-def graph_from_geometry(geom: SceneGeom, free_space: bool = True) -> SceneGraph:
+def graph_from_geometry(geom: SceneGeom, free_space: bool = True, floor: Floor | None = None) -> SceneGraph:
+    apply_floor(geom, floor or Floor())  # before the phrases: a below-floor object gets none
     nodes = make_nodes(geom)
     facts = all_facts(geom)
     regions = []
@@ -153,10 +162,13 @@ def graph_from_geometry(geom: SceneGeom, free_space: bool = True) -> SceneGraph:
         "surfaces": surfaces,
         "source": geom.frame.source,
         "image_size": [geom.W, geom.H],
+        "truth_floor": geom.cache["floor"].to_json(),
     }
+    truth = dict(geom.cache["truth"])
     withheld = {"margin": "colour_unnamed_margin", "person_or_animal": "colour_withheld_person_or_animal"}
     for how in geom.colour_how:  # objects the colour namer left unnamed (run/stats.py truth_counts)
         if how in withheld:
-            truth = meta.setdefault("truth", {})
             truth[withheld[how]] = truth.get(withheld[how], 0) + 1
+    if truth:
+        meta["truth"] = dict(sorted(truth.items()))
     return SceneGraph(geom.frame.frame_id, nodes, facts, regions, meta)

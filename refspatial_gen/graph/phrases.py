@@ -49,6 +49,17 @@ def _rank(codes: np.ndarray, i: int, group: list[int]) -> int | None:
     return ahead + 1
 
 
+def _same_rank(codes: np.ndarray, i: int, group: list[int], seen: list[int], r: int) -> tuple[bool, bool]:
+    """(rank from the start, rank from the end) of i are the same among the objects a viewer can see as among
+    all of them: an ordinal must not count an object too small or hidden to notice."""
+    if len(seen) == len(group):
+        return True, True
+    rs = _rank(codes, i, seen) if i in seen else None
+    if rs is None:
+        return False, False
+    return rs == r, len(seen) - rs == len(group) - r
+
+
 def _group_phrases(geom: SceneGeom, group: list[int], noun: str, out: dict[int, list[tuple[int, str]]]) -> None:
     """Superlatives and ordinals within `group` (all sharing `noun`, e.g. "red cup")."""
     if len(group) < 2:
@@ -59,6 +70,7 @@ def _group_phrases(geom: SceneGeom, group: list[int], noun: str, out: dict[int, 
     ds = geom.near_depth[group]
     lateral_first = np.ptp(xs) >= np.ptp(ds)  # the axis of largest spread gets priority
     pri_x, pri_d = (0, 1) if lateral_first else (1, 0)
+    seen = [j for j in group if geom.points[j] is not None]  # what a viewer can see (graph/visibility.py)
     for i in group:
         if geom.world_ok:
             tc, bc = sizes._tall(geom)[1], sizes._big(geom)[1]
@@ -73,24 +85,26 @@ def _group_phrases(geom: SceneGeom, group: list[int], noun: str, out: dict[int, 
         r = _rank(lc, i, group)
         if r is not None:
             k = len(group)
+            fwd, back = _same_rank(lc, i, group, seen, r)
             if r == 1:
                 out[i].append((pri_x, f"the leftmost {noun}"))
             if r == k:
                 out[i].append((pri_x, f"the rightmost {noun}"))
-            if k >= 3 and r in ORDINAL_WORDS and r != k:
+            if k >= 3 and r in ORDINAL_WORDS and r != k and fwd:
                 out[i].append((pri_x, f"the {ORDINAL_WORDS[r]} {noun} from the left"))
-            if k >= 3 and (k - r + 1) in ORDINAL_WORDS and r != 1:
+            if k >= 3 and (k - r + 1) in ORDINAL_WORDS and r != 1 and back:
                 out[i].append((pri_x, f"the {ORDINAL_WORDS[k - r + 1]} {noun} from the right"))
         r = _rank(fc, i, group)
         if r is not None:
             k = len(group)
+            fwd, back = _same_rank(fc, i, group, seen, r)
             if r == 1:
                 out[i].append((pri_d, f"the nearest {noun}"))
             if r == k:
                 out[i].append((pri_d, f"the farthest {noun}"))
-            if k >= 3 and r in ORDINAL_WORDS and r != k:
+            if k >= 3 and r in ORDINAL_WORDS and r != k and fwd:
                 out[i].append((pri_d, f"the {ORDINAL_WORDS[r]} nearest {noun}"))
-            if k >= 3 and (k - r + 1) in ORDINAL_WORDS and r != 1:
+            if k >= 3 and (k - r + 1) in ORDINAL_WORDS and r != 1 and back:
                 out[i].append((pri_d, f"the {ORDINAL_WORDS[k - r + 1]} farthest {noun}"))
 
 

@@ -136,6 +136,10 @@ class SceneGeom:
         self.cam_rot_g = G @ cam.world_from_cam[:3, :3]
         self.cam_pos_g = G @ cam.world_from_cam[:3, 3]
         self._masks()
+        # truth floors (graph/visibility.apply_floor fills them when a graph is built)
+        self.in_view = np.ones(n)
+        self.floor_why: list[str | None] = [None] * n
+        self.metric_why: list[str | None] = [None] * n
         self.fronts = np.full((n, 3), np.nan)
         for i, o in enumerate(objs):
             if o.front is not None:

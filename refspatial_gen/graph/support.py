@@ -3,7 +3,9 @@
 Why: on/under, stacking, corners, edges and free space all need to know the surface under an object.
 Rule (shared/spec/relations.md): a support's top lies within `support_gap` of the object's bottom and
 covers at least `support_overlap` of the object's footprint (for an object support, of the smaller of the
-two footprints, so a wide book can rest on a small block). The nearest such top wins.
+two footprints, so a wide book can rest on a small block), and, for an object support, its category can
+bear the object's (truth/data/bearing.yaml via `truth.can_bear`: a car or a person carries nothing; a
+refusal is counted as `support_cannot_bear` in graph.meta["truth"]). The nearest such top wins.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ import numpy as np
 
 from refspatial_gen.core.geometry import Box3D
 from refspatial_gen.graph.scene import SceneGeom, ccw, points_in_polygons
+from refspatial_gen.truth.sizes import can_bear
 
 
 @dataclass(frozen=True)
@@ -52,6 +55,7 @@ def find_supports(geom: SceneGeom) -> list[Support | None]:
     ov = geom.footprint_overlap  # (i, j): share of i over j
     area = geom.footprint_area
     out: list[Support | None] = []
+    refused = 0
     shares = np.zeros((geom.n, len(surfs)))
     if len(surfs) and geom.n:  # share of each object's footprint grid over each surface, in one call
         grids = np.stack([_grid_in(fp) for fp in geom.footprints])  # (n, 36, 2)
@@ -73,11 +77,24 @@ def find_supports(geom: SceneGeom) -> list[Support | None]:
             # share of the smaller footprint that the two have in common
             common = ov[i, j] if area[i] <= area[j] else ov[j, i]
             if common >= th.support_overlap and geom.centers[i, 2] > geom.centers[j, 2]:
+                if not _bears(geom, int(j), i):
+                    refused += 1
+                    continue
                 cands.append((abs(gap), 0, Support("object", int(geom.ids[j]), float(gap), float(common))))
         # nearest top first; on ties an object beats the surface below it (it is the one touched)
         cands.sort(key=lambda c: (round(c[0], 4), c[1], str(c[2].ref)))
         out.append(cands[0][2] if cands else None)
+    if refused:
+        truth = geom.cache.setdefault("truth", {})
+        truth["support_cannot_bear"] = truth.get("support_cannot_bear", 0) + refused
     return out
+
+
+def _bears(geom: SceneGeom, j: int, i: int) -> bool:
+    """Can object j carry object i on its top (category rule and overhang, gravity-aligned box sizes)?"""
+    sj = (float(geom.width[j]), float(geom.width[j]), float(geom.height[j]))
+    si = (float(geom.width[i]), float(geom.width[i]), float(geom.height[i]))
+    return can_bear(geom.categories[j], geom.categories[i], support_size=sj, object_size=si)
 
 
 def root_surfaces(geom: SceneGeom, supports: list[Support | None]) -> list[str | None]:

@@ -17,6 +17,7 @@ import numpy as np
 from refspatial_gen.core.model import Frame, QAPair, SceneGraph
 from refspatial_gen.qa.config import QAConfig
 from refspatial_gen.qa.executor import Search, degenerate_steps, slot_candidates
+from refspatial_gen.qa.faint import withhold
 from refspatial_gen.qa.index import Reject, SceneIndex
 from refspatial_gen.qa.ops.base import BOOL, OBJECT
 from refspatial_gen.qa.program import Template
@@ -112,8 +113,10 @@ def generate_qa(
     rng: np.random.Generator,
     config: QAConfig,
     indexes: list[SceneIndex] | None = None,
+    truth: dict[str, int] | None = None,
 ) -> list[QAPair]:
     """Up to `config.max_per_sample` checked QA pairs for one sample (one frame or a multi-view group).
+    `truth`: a dict the truth checks (qa/faint.py) add their withheld pairs to, by reason.
 
     The lookup indexes are built for this call and freed with it (a run uses each graph in one sample only;
     keeping them would only give the garbage collector more to scan). Callers that ask several times of the
@@ -127,11 +130,15 @@ def generate_qa(
     ):
         raise ValueError("indexes must be the SceneIndex of each (frame, graph), in order")
     idxs = indexes or [SceneIndex(f, g) for f, g in zip(frames, graphs)]
-    return _generate(frames, idxs, rng, config)
+    return _generate(frames, idxs, rng, config, {} if truth is None else truth)
 
 
 def _generate(
-    frames: list[Frame], idxs: list[SceneIndex], sample_rng: np.random.Generator, config: QAConfig
+    frames: list[Frame],
+    idxs: list[SceneIndex],
+    sample_rng: np.random.Generator,
+    config: QAConfig,
+    truth: dict[str, int],
 ) -> list[QAPair]:
     rng = SampleRng(sample_rng)  # template QA draws from a fast generator seeded by the sample's
     pairs = [
@@ -172,9 +179,9 @@ def _generate(
             ctx = views[i]
             fids = [frames[i].frame_id]
         qid = f"{frames[i].frame_id}:{len(out):02d}"  # the asked view (the first of a view pair)
-        qa = _instantiate(t, ctx, rng, config, bal, seen, fids, qid, view=i)
+        qa = _instantiate(t, ctx, rng, config, bal, seen, fids, qid, view=i, truth=truth)
         if qa is None and t.answer_type == BOOL:  # the other answer may exist (the balancer catches up)
-            qa = _instantiate(t, ctx, rng, config, bal, seen, fids, qid, flip=True, view=i)
+            qa = _instantiate(t, ctx, rng, config, bal, seen, fids, qid, flip=True, view=i, truth=truth)
         if qa is None:
             exhausted.add(id(t))  # no binding passed in this sample: do not spend more attempts on it
             continue
@@ -250,6 +257,7 @@ def _instantiate(
     qa_id: str,
     flip: bool = False,
     view: int = 0,
+    truth: dict[str, int] | None = None,
 ) -> QAPair | None:
     """One checked QA pair of template t on ctx's frame (`view`: that frame's position in the sample), or None."""
     needs = t.program.needs
@@ -272,6 +280,8 @@ def _instantiate(
         if want is not None and ans is not want:
             return None
         if is_obj:
+            if ans not in idx.answer_points:
+                return None  # an object without an answer point (hidden, below the visibility floor)
             ans = PointValue(idx.point(ans), ans)
         if isinstance(ans, PointValue):
             if not bal.point_ok(ans.point):
@@ -288,6 +298,11 @@ def _instantiate(
             extra = _bind_text_only(t, env, ctx)
             qa = build_pair(t, {**env, **extra}, ans, ctx, rng, frame_ids, qa_id, view)
         except Reject:
+            return None
+        why = withhold(t, env, ctx, qa)
+        if why is not None:
+            if truth is not None:
+                truth[why] = truth.get(why, 0) + 1
             return None
         seen.add(key)
         bal.add(env[last] if t.answer_type == BOOL else ans)

@@ -1,11 +1,10 @@
 """Independent re-check of stored QA pairs (`refspatial-gen verify DIR`, `verify_sample`).
 
-Why a second code path: a check that shares the generator's code shares its bugs. The verifier reads
-only what a shard stores (frames, scene graphs, QA pairs with their executed programs) and re-derives
-every answer on its own: relations are re-evaluated on the frame's raw geometry through the relation
-registry's `evaluate` (not the stored facts or the generator's index), phrases are re-resolved by the
-graph's independent resolver, points are tested against decoded masks, free points against the
-surface and depth map, and numbers are recomputed from the stored 3D boxes with core.geometry.
+Why a second code path: a check that shares the generator's code shares its bugs. The verifier reads only
+what a shard stores and re-derives every answer on its own: relations re-evaluated on the frame's geometry
+through the relation registry's `evaluate` (not the stored facts or the generator's index), phrases by the
+graph's independent resolver, points against decoded masks, free points against the surface and depth
+map, numbers from the stored 3D boxes; visibility and size truth in verify_truth.py.
 """
 
 from __future__ import annotations
@@ -20,6 +19,7 @@ import numpy as np
 from refspatial_gen.core.mask import denormalise_point
 from refspatial_gen.core.model import Frame, FreeSpaceRegion, QAPair, Sample, SceneGraph
 from refspatial_gen.qa.ops import OPS
+from refspatial_gen.qa.verify_truth import check_truth
 from refspatial_gen.qa.verify_units import LENGTHS, check_length_text, check_size_step
 from refspatial_gen.qa.verify_world import ANGLE_TOL, LENGTH_ABS_TOL, LENGTH_REL_TOL, Fail, Run, Undecided, World, _size
 
@@ -29,7 +29,6 @@ KEY_TOL = 1.5e-3  # key-step values are rounded to 3 decimals
 
 def _steps_of(program: list[dict[str, Any]]) -> int:
     """The step count the record's own program gives (each op's formats.md rule over the stored arguments)."""
-
     n = 0
     for st in program:
         op, a = st.get("op"), st.get("args") or {}
@@ -120,6 +119,7 @@ def verify_qa(
                 problems.append(f"step {k + 1} ({st['op']}) stored {sorted(stored)} but re-evaluates to {sorted(got)}")
         problems += _check_answer(qa, final, w, frame, graph)
     problems += _check_marks(qa, w, order if order is not None else list(frames))
+    problems += check_truth(qa, frames, graphs)  # visibility floor, phrases without faint objects, metric trust
     # --- trace and key steps
     problems += _check_trace(qa, w)
     return problems

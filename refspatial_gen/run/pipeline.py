@@ -48,12 +48,18 @@ def make_sample(recipe: Recipe, unit: Unit, timer: StageTimer, out_dir: str | No
     t = timer.add("load", t)
     graphs = [build_graph(f, recipe.graph) for f in frames]
     t = timer.add("graph", t)
-    qa = generate_qa(frames, graphs, rng, recipe.qa)
+    truth: dict[str, int] = {}  # QA pairs the truth checks withheld, by reason (qa/faint.py)
+    qa = generate_qa(frames, graphs, rng, recipe.qa, truth=truth)
     timer.add("qa", t)
     if not qa:
         raise DropUnit("no_questions", f"{unit.key}: no question passed the checks")
     sample = Sample(
-        sample_id=unit.uid, frames=frames, graphs=graphs, qa=qa, unit_key=unit.key, meta={"source": unit.kind}
+        sample_id=unit.uid,
+        frames=frames,
+        graphs=graphs,
+        qa=qa,
+        unit_key=unit.key,
+        meta={"source": unit.kind, **({"truth": dict(sorted(truth.items()))} if truth else {})},
     )
     if recipe.rewrite is not None:  # LLM rewording of the questions, each checked (docs/rewrite.md)
         from refspatial_gen.rewrite.stage import rewrite_sample
