@@ -126,12 +126,13 @@ audit: setup assets-shared
 # LINT_PATHS lists the parts brought to zero findings so far (issue #20); LINT_LATER are files other work was
 # editing when the rest was formatted. The lead widens it to `refspatial_gen tests` once the parallel work has
 # merged (then `ruff format` the rest once).
-LINT_LATER = refspatial_gen/shards/export_sft.py refspatial_gen/shards/export_rft.py \
-	refspatial_gen/shards/export_refspatial_bench.py refspatial_gen/assets/catalog.py
+# formatting would push these over the size limits (dense config tables, one long main): split them first
+LINT_LATER = refspatial_gen/bench.py refspatial_gen/stream.py refspatial_gen/perception/random_models.py
 LINT_PATHS ?= refspatial_gen/core refspatial_gen/graph refspatial_gen/qa refspatial_gen/tools refspatial_gen/cli \
 	refspatial_gen/run refspatial_gen/sources/image refspatial_gen/sources/scan refspatial_gen/rewards \
-	refspatial_gen/eval refspatial_gen/audit \
-	$(filter-out $(LINT_LATER),$(wildcard refspatial_gen/shards/*.py refspatial_gen/assets/*.py)) \
+	refspatial_gen/eval refspatial_gen/audit refspatial_gen/sources/sim refspatial_gen/rewrite refspatial_gen/depth \
+	refspatial_gen/truth $(wildcard refspatial_gen/shards/*.py refspatial_gen/assets/*.py refspatial_gen/sources/*.py) \
+	$(filter-out $(LINT_LATER),$(wildcard refspatial_gen/*.py refspatial_gen/perception/*.py)) \
 	tests/test_core.py tests/test_graph_*.py tests/test_qa_*.py tests/test_plugins.py tests/test_registries.py \
 	tests/test_size_limits.py tests/test_sim_cli.py tests/helpers/scenes.py
 TYPED_PATHS ?= refspatial_gen/core refspatial_gen/graph refspatial_gen/qa

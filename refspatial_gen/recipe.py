@@ -15,9 +15,9 @@ from refspatial_gen.core.errors import RecipeError, RecipeErrors
 from refspatial_gen.core.serialize import dumps
 from refspatial_gen.graph.visibility import check_truth_section
 from refspatial_gen.qa.config import load_qa_config
+from refspatial_gen.recipe_paths import Confinement, check_name, check_rewrite, check_source_config, check_templates
 from refspatial_gen.rewrite.config import load_rewrite_config
 from refspatial_gen.run.splits import check_splits
-from refspatial_gen.recipe_paths import Confinement, check_name, check_rewrite, check_source_config, check_templates
 from refspatial_gen.schema import Field, check_section, non_finite
 from refspatial_gen.sources import get_source, source_names
 from refspatial_gen.yamlpos import line_of, load_yaml

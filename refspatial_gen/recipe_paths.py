@@ -19,8 +19,9 @@ from __future__ import annotations
 
 import os
 import re
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
 from refspatial_gen.core.errors import RecipeError
 from refspatial_gen.yamlpos import line_of
@@ -66,7 +67,9 @@ class Confinement:
 
     def __init__(self, recipe_file: str, lines: dict, errors: list[RecipeError], extra: Iterable[str] = ()) -> None:
         self.file, self.lines, self.errors = recipe_file, lines, errors
-        self.recipe_dir = Path(recipe_file).parent.resolve()  # as the loaders join it (a symlinked recipe keeps its folder)
+        self.recipe_dir = Path(
+            recipe_file
+        ).parent.resolve()  # as the loaders join it (a symlinked recipe keeps its folder)
         self.roots = [self.recipe_dir, *SHIPPED_ROOTS, *explicit_roots(extra)]
 
     def allow(self, root: str | Path) -> None:
@@ -87,9 +90,12 @@ class Confinement:
             return None
         if any(is_under(resolved, r) for r in self.roots):
             return resolved
-        self._err(where, f"{key_name}: path {value!r} is outside the allowed folders (the recipe's folder, "
-                         f"the input folder, the shipped recipes/ and assets/, --allow-root or "
-                         f"{ALLOWED_ROOTS_ENV})")
+        self._err(
+            where,
+            f"{key_name}: path {value!r} is outside the allowed folders (the recipe's folder, "
+            f"the input folder, the shipped recipes/ and assets/, --allow-root or "
+            f"{ALLOWED_ROOTS_ENV})",
+        )
         return None
 
     def _err(self, where: tuple, msg: str) -> None:

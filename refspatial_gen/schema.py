@@ -7,13 +7,21 @@ Every part of the project that reads a recipe section (sources, qa, shards) decl
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 from refspatial_gen.core.errors import RecipeError
 from refspatial_gen.yamlpos import line_of
 
-_TYPE_NAMES = {int: "an integer", float: "a number", str: "a string", bool: "true/false", list: "a list", dict: "a mapping"}
+_TYPE_NAMES = {
+    int: "an integer",
+    float: "a number",
+    str: "a string",
+    bool: "true/false",
+    list: "a list",
+    dict: "a mapping",
+}
 
 
 @dataclass(frozen=True)
@@ -53,8 +61,9 @@ def _type_name(t) -> str:
     return " or ".join(_TYPE_NAMES.get(x, x.__name__) for x in ts)
 
 
-def check_section(data: Any, fields: dict[str, Field], file: str, lines: dict[tuple, int], path: tuple,
-                  errors: list[RecipeError]) -> dict[str, Any]:
+def check_section(
+    data: Any, fields: dict[str, Field], file: str, lines: dict[tuple, int], path: tuple, errors: list[RecipeError]
+) -> dict[str, Any]:
     """Validate one mapping; append every problem to `errors`; return the section with defaults filled in."""
     where = ".".join(str(p) for p in path) or "recipe"
     prefix = f"{where}." if path else ""
@@ -67,7 +76,11 @@ def check_section(data: Any, fields: dict[str, Field], file: str, lines: dict[tu
     for key in data:
         if key not in fields:
             known = ", ".join(sorted(fields))
-            errors.append(RecipeError(file, line_of(lines, path + (key,)), f"unknown key {short(key)} in {where} (known: {known})"))
+            errors.append(
+                RecipeError(
+                    file, line_of(lines, path + (key,)), f"unknown key {short(key)} in {where} (known: {known})"
+                )
+            )
     for key, f in fields.items():
         if key not in data or data[key] is None:
             if f.required:
@@ -81,13 +94,17 @@ def check_section(data: Any, fields: dict[str, Field], file: str, lines: dict[tu
             out[key] = f.default
             continue
         if not _type_ok(v, f.type):
-            errors.append(RecipeError(file, ln, f"{prefix}{key} must be {_type_name(f.type)}, got {type(v).__name__} {short(v)}"))
+            errors.append(
+                RecipeError(file, ln, f"{prefix}{key} must be {_type_name(f.type)}, got {type(v).__name__} {short(v)}")
+            )
             out[key] = f.default
             continue
         if isinstance(v, int) and not isinstance(v, bool) and f.type is float:
             v = float(v)
         if f.choices is not None and v not in f.choices:
-            errors.append(RecipeError(file, ln, f"{prefix}{key} must be one of {', '.join(map(str, f.choices))}, got {short(v)}"))
+            errors.append(
+                RecipeError(file, ln, f"{prefix}{key} must be one of {', '.join(map(str, f.choices))}, got {short(v)}")
+            )
         if f.min is not None and isinstance(v, (int, float)) and v < f.min:
             errors.append(RecipeError(file, ln, f"{prefix}{key} must be >= {f.min}, got {v}"))
         if f.max is not None and isinstance(v, (int, float)) and v > f.max:

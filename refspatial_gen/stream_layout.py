@@ -10,8 +10,9 @@ Ranges are sorted, disjoint, half-open `(start, stop)` pairs.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Iterator
 from itertools import islice
-from typing import Iterable, Iterator, TypeVar
+from typing import TypeVar
 
 import numpy as np
 
@@ -109,8 +110,9 @@ def slot_rng(seed: int, epoch: int, slot: int, resplit: int) -> np.random.Genera
     return np.random.default_rng(key)
 
 
-def slot_order(n: int, done: Ranges, slot: int, slots: int, *, seed: int, epoch: int, resplit: int, shuffle: bool,
-               buffer_size: int) -> Iterator[int]:
+def slot_order(
+    n: int, done: Ranges, slot: int, slots: int, *, seed: int, epoch: int, resplit: int, shuffle: bool, buffer_size: int
+) -> Iterator[int]:
     """The positions slot `slot` yields, in yield order (what the reader does, without reading)."""
     mine = positions(slot_ranges(n, done, slot, slots))
     if not shuffle or buffer_size <= 1:

@@ -58,8 +58,9 @@ class _Builder:
     def build(self, node: yaml.Node, path: tuple) -> Any:
         self.nodes += 1
         if self.nodes > MAX_NODES:
-            raise _Limit(node.start_mark.line + 1, f"more than {MAX_NODES} values after expanding aliases "
-                                                   f"(an alias bomb?)")
+            raise _Limit(
+                node.start_mark.line + 1, f"more than {MAX_NODES} values after expanding aliases (an alias bomb?)"
+            )
         line = node.start_mark.line + 1
         self.lines[path] = line
         if isinstance(node, (yaml.MappingNode, yaml.SequenceNode)) and node.tag not in _PLAIN_TAGS:

@@ -76,6 +76,13 @@ def _spread_boxes(rng, n):
         ("box", "white", Box3D(np.array([x, y, TABLE.top_z + 0.04]), np.array([0.18, 0.18, 0.08]), np.eye(3))),
         ("can", "red", Box3D(np.array([x, y, TABLE.top_z + 0.08]), np.array([0.06, 0.06, 0.16]), np.eye(3))),
     ]
+    # a block resting on a tray, so above/below (world) hold too (objects side by side on the table are
+    # neither above nor below one another)
+    x2, y2 = x + (0.33 if x < 0 else -0.33), 0.0
+    out += [
+        ("tray", "green", Box3D(np.array([x2, y2, TABLE.top_z + 0.0125]), np.array([0.25, 0.17, 0.025]), np.eye(3))),
+        ("block", "yellow", Box3D(np.array([x2, y2, TABLE.top_z + 0.05]), np.array([0.05, 0.05, 0.05]), np.eye(3))),
+    ]
     while len(out) < n:
         cat = str(rng.choice(sorted(CATEGORIES)))
         size = np.array([rng.uniform(*r) for r in CATEGORIES[cat]])

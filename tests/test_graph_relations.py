@@ -32,6 +32,20 @@ def test_front_behind(ya, yb, front):
     check(fr, g, "behind", (2, 1), front)
 
 
+def test_left_right_front_undecided_when_boxes_overlap():
+    """A box standing on the right half of a deep tray is neither "right of" nor "behind" the tray: their
+    footprints intersect and the box's x and depth ranges lie within the tray's. A box beside the tray
+    (disjoint footprints) stays decided."""
+    tray = box(0.0, 0.0, (0.50, 0.30, 0.03))
+    fr, g = scene(("tray", "red", tray), ("box", "blue", box(0.16, 0.08, (0.05, 0.05, 0.06), z0=TOP + 0.03)))
+    check(fr, g, "left", (1, 2), None)
+    check(fr, g, "right", (2, 1), None)
+    check(fr, g, "front", (1, 2), None)
+    check(fr, g, "behind", (2, 1), None)
+    fr, g = scene(("tray", "red", tray), ("box", "blue", box(0.32, 0.08, (0.05, 0.05, 0.06))))
+    check(fr, g, "right", (2, 1), True)
+
+
 # ------------------------------------------------------------------ above / below (image)
 @pytest.mark.parametrize("ya, yb, above", [(0.3, -0.2, True), (-0.2, 0.3, False), (0.0, 0.0, None)])
 def test_above_below_image(ya, yb, above):
@@ -54,6 +68,20 @@ def test_above_below_world():
     )
     check(fr, g, "above_world", (1, 2), None)
     check(fr, g, "below_world", (1, 2), None)
+
+
+def test_above_world_undecided_side_by_side():
+    """Standing side by side, a tall box is not "above" a short one, however far apart their centres; two
+    thin boxes (thinner than the stack tolerance) side by side at one level are not a stack either way (the
+    sign of a 1e-7 m centre difference decided it)."""
+    tall, short = box(-0.15, 0.0, (0.08, 0.08, 0.30)), box(0.15, 0.0, (0.08, 0.08, 0.05))
+    fr, g = scene(("box", "red", tall), ("box", "blue", short))
+    check(fr, g, "above_world", (1, 2), None)
+    check(fr, g, "below_world", (2, 1), None)
+    flat = (0.10, 0.06, 0.008)
+    fr, g = scene(("book", "red", box(-0.15, 0.0, flat, z0=TOP + 1e-7)), ("book", "blue", box(0.15, 0.0, flat)))
+    check(fr, g, "above_world", (1, 2), None)
+    check(fr, g, "below_world", (2, 1), None)
 
 
 # ------------------------------------------------------------------ sizes

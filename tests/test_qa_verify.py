@@ -220,7 +220,7 @@ def test_verify_command_on_a_shard_dir(samples, tmp_path, capsys):
     res = json.loads(capsys.readouterr().out)
     assert res["qa_pairs"] == sum(len(s.qa) for s in samples[:3]) and res["failed"] == 0 and res["failures"] == []
     # a tampered copy fails, with the reason
-    bad = copy.deepcopy(samples[3])
+    bad = copy.deepcopy(next(s for s in samples[3:] if any(q.answer_struct["kind"] == "number" for q in s.qa)))
     q = next(q for q in bad.qa if q.answer_struct["kind"] == "number")
     q.answer_struct["value"] += 0.5
     d2 = tmp_path / "bad"

@@ -25,8 +25,20 @@ from refspatial_gen.yamlpos import line_of, load_yaml
 DEFAULT_CATALOG = REPO_ROOT / "assets" / "catalog.yaml"
 SCALES = ("tabletop", "room")
 UP_AXES = ("z", "y", "x", "-z", "-y", "-x")
-CATEGORY_KEYS = {"builder", "dims", "colors", "materials", "scale", "front", "front_phrase", "weight", "accent",
-                 "fits_inside", "external", "label"}
+CATEGORY_KEYS = {
+    "builder",
+    "dims",
+    "colors",
+    "materials",
+    "scale",
+    "front",
+    "front_phrase",
+    "weight",
+    "accent",
+    "fits_inside",
+    "external",
+    "label",
+}
 MATERIAL_KEYS = {"specular", "shininess", "reflectance", "alpha"}
 EXTERNAL_KEYS = {"mesh", "texture", "collision", "scale", "up", "parts", "rgba", "mass", "sha256", "source"}
 
@@ -89,7 +101,7 @@ def _floats(v, n: int | None = None) -> bool:
     return isinstance(v, list) and (n is None or len(v) == n) and all(_number(x) for x in v)
 
 
-def _mapping(v: Any, c: "_Ctx", where: tuple, what: str) -> dict:
+def _mapping(v: Any, c: _Ctx, where: tuple, what: str) -> dict:
     """`v` when it is a mapping (absent = empty); otherwise an error and an empty mapping."""
     if v is None:
         return {}
@@ -99,7 +111,7 @@ def _mapping(v: Any, c: "_Ctx", where: tuple, what: str) -> dict:
     return v
 
 
-def _names(v: Any, c: "_Ctx", where: tuple, what: str) -> tuple[str, ...]:
+def _names(v: Any, c: _Ctx, where: tuple, what: str) -> tuple[str, ...]:
     """A list of names (strings); anything else (a nested list, a number, a mapping) is an error."""
     if v is None:
         return ()
@@ -146,7 +158,10 @@ def _external(name: str, ext: Any, c: _Ctx) -> dict[str, Any]:
         return {}
     for k in ext:
         if k not in EXTERNAL_KEYS:
-            c.err(where + (k,), f"category {name!r}: unknown external key {k!r} (known: {', '.join(sorted(EXTERNAL_KEYS))})")
+            c.err(
+                where + (k,),
+                f"category {name!r}: unknown external key {k!r} (known: {', '.join(sorted(EXTERNAL_KEYS))})",
+            )
     out: dict[str, Any] = {"spec": dict(ext)}
     if "mesh" not in ext:
         c.err(where, f"category {name!r}: external categories need external.mesh")
@@ -155,7 +170,9 @@ def _external(name: str, ext: Any, c: _Ctx) -> dict[str, Any]:
     if ext.get("texture"):
         out["texture"] = c.path(ext["texture"], where + ("texture",), f"category {name!r}: texture")
     col = ext.get("collision", "hull")
-    out["collision"] = "hull" if col == "hull" else c.path(col, where + ("collision",), f"category {name!r}: collision parts", True)
+    out["collision"] = (
+        "hull" if col == "hull" else c.path(col, where + ("collision",), f"category {name!r}: collision parts", True)
+    )
     if out["collision"] and out["collision"] != "hull" and not list(Path(out["collision"]).glob("*.stl")):
         c.err(where + ("collision",), f"category {name!r}: no convex parts (*.stl) in {out['collision']}")
     s = ext.get("scale", 1.0)
@@ -182,8 +199,12 @@ def _external(name: str, ext: Any, c: _Ctx) -> dict[str, Any]:
         if rgba is not None and not _floats(rgba, 4):
             c.err(where + ("parts", i), f"category {name!r}: part rgba must be [r, g, b, a]")
             rgba = None
-        parts.append({"mesh": c.path(p["mesh"], where + ("parts", i), f"category {name!r}: part mesh"),
-                      "rgba": None if rgba is None else tuple(float(x) for x in rgba)})
+        parts.append(
+            {
+                "mesh": c.path(p["mesh"], where + ("parts", i), f"category {name!r}: part mesh"),
+                "rgba": None if rgba is None else tuple(float(x) for x in rgba),
+            }
+        )
     out["parts"] = parts
     m = ext.get("mass", 0.0)
     if not (_number(m) and m >= 0):
@@ -249,9 +270,22 @@ def _parse_category(name: str, d: Any, c: _Ctx, colors: dict, materials: dict, b
         err("needs at least one colour", "colors")
     if len(c.errors) > n0:
         return None
-    return Category(name, builder, dims, cols, mats, scale, front, d.get("front_phrase"), float(weight),
-                    accent, bool(d.get("fits_inside", False)), ext,
-                    str(d.get("label") or name), (c.file, line_of(c.lines, path)))
+    return Category(
+        name,
+        builder,
+        dims,
+        cols,
+        mats,
+        scale,
+        front,
+        d.get("front_phrase"),
+        float(weight),
+        accent,
+        bool(d.get("fits_inside", False)),
+        ext,
+        str(d.get("label") or name),
+        (c.file, line_of(c.lines, path)),
+    )
 
 
 def _material(name: str, v: Any, c: _Ctx) -> dict[str, tuple[float, float]] | None:
@@ -264,10 +298,15 @@ def _material(name: str, v: Any, c: _Ctx) -> dict[str, tuple[float, float]] | No
     for k, x in v.items():
         rng = (x, x) if _number(x) else tuple(x) if _floats(x, 2) else None
         if k not in MATERIAL_KEYS:
-            c.err(("materials", name, k), f"material {name!r}: unknown key {k!r} (known: {', '.join(sorted(MATERIAL_KEYS))})")
+            c.err(
+                ("materials", name, k),
+                f"material {name!r}: unknown key {k!r} (known: {', '.join(sorted(MATERIAL_KEYS))})",
+            )
         elif rng is None or not 0 <= rng[0] <= rng[1] <= 1:
-            c.err(("materials", name, k), f"material {name!r}: {k} must be a number in 0..1 or [lo, hi] with "
-                                          f"0 <= lo <= hi <= 1, got {x!r}")
+            c.err(
+                ("materials", name, k),
+                f"material {name!r}: {k} must be a number in 0..1 or [lo, hi] with 0 <= lo <= hi <= 1, got {x!r}",
+            )
         else:
             out[str(k)] = (float(rng[0]), float(rng[1]))
     return out  # a bad value was reported; the name still counts as known (no second error)
@@ -330,7 +369,9 @@ def _load(files: tuple[str, ...], _key: tuple) -> Catalog:
         raise errors[0] if len(errors) == 1 else RecipeErrors(errors)
     ranges = acc["material_ranges"]
     nominal = {m: {k: round((lo + hi) / 2, 6) for k, (lo, hi) in r.items()} for m, r in ranges.items()}
-    return Catalog(files[-1], acc["colors"], nominal, dict(sorted(acc["categories"].items())), tuple(acc["files"]), ranges)
+    return Catalog(
+        files[-1], acc["colors"], nominal, dict(sorted(acc["categories"].items())), tuple(acc["files"]), ranges
+    )
 
 
 def load_catalog(path: str | list[str] | tuple[str, ...] | None = None) -> Catalog:

@@ -3,17 +3,31 @@
 from __future__ import annotations
 
 import json
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import zstandard
 
 from refspatial_gen import SCHEMA_VERSION
 
+if TYPE_CHECKING:
+    from refspatial_gen.core.model import Frame
+
 
 def dumps(obj: Any) -> bytes:
     """Canonical JSON bytes: sorted keys, no whitespace, so identical data gives identical bytes."""
     return json.dumps(obj, sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False).encode("utf-8")
+
+
+def as_stored(frame: Frame) -> Frame:
+    """The frame exactly as a shard stores it: metadata through the canonical JSON (boxes, camera and
+    fronts rounded as `to_json` rounds them), depth as little-endian float32. Why: `verify` re-evaluates
+    every relation on the stored frame, so graphs and QA pairs must be built on the same numbers; a value
+    within rounding of a margin otherwise decides one way in the generator and the other way in verify."""
+    from refspatial_gen.core.model import Frame
+
+    depth = np.ascontiguousarray(frame.depth, dtype="<f4")
+    return Frame.from_meta_json(json.loads(dumps(frame.meta_json())), frame.rgb, depth)
 
 
 def envelope(kind: str, payload: dict[str, Any]) -> dict[str, Any]:

@@ -51,9 +51,15 @@ class CameraFit:
     status: str = "unverified"  # "consistent" | "inconsistent" | "unverified"
 
     def meta(self) -> dict:
-        return {"source": self.source, "camera_height": round(self.camera_height, 4),
-                "pitch_deg": round(float(np.rad2deg(self.pitch)), 3), "anchors": self.anchors,
-                "inliers": len(self.inliers), "status": self.status, "reliable": self.status == "consistent"}
+        return {
+            "source": self.source,
+            "camera_height": round(self.camera_height, 4),
+            "pitch_deg": round(float(np.rad2deg(self.pitch)), 3),
+            "anchors": self.anchors,
+            "inliers": len(self.inliers),
+            "status": self.status,
+            "reliable": self.status == "consistent",
+        }
 
 
 def anchor_usable(category: str) -> bool:
@@ -70,10 +76,19 @@ def _stab(lo: np.ndarray, hi: np.ndarray) -> tuple[int, float, float]:
     return int(run[k]), float(ev[k, 0]), float(ev[k + 1, 0]) if k + 1 < len(ev) else float(ev[k, 0])
 
 
-def fit_camera(anchors: list[Anchor], fy: float, cy: float, prior_height: float, prior_pitch: float,
-               pitch_range: tuple[float, float] = (-15.0, 45.0), height_range: tuple[float, float] = (0.3, 30.0),
-               min_inlier_share: float = 0.6, prior_sigma_pitch_deg: float = 10.0,
-               prior_sigma_log_height: float = 0.7, min_anchors: int = 2) -> CameraFit:
+def fit_camera(
+    anchors: list[Anchor],
+    fy: float,
+    cy: float,
+    prior_height: float,
+    prior_pitch: float,
+    pitch_range: tuple[float, float] = (-15.0, 45.0),
+    height_range: tuple[float, float] = (0.3, 30.0),
+    min_inlier_share: float = 0.6,
+    prior_sigma_pitch_deg: float = 10.0,
+    prior_sigma_log_height: float = 0.7,
+    min_anchors: int = 2,
+) -> CameraFit:
     """Camera height (m) and pitch (rad) that put the most anchors inside their category's height range.
 
     `pitch_range` (degrees) and `height_range` (metres) bound the search; ties between equally
@@ -108,8 +123,10 @@ def fit_camera(anchors: list[Anchor], fy: float, cy: float, prior_height: float,
         # heights, so a toddler or a sitting person inside the range does not drag the camera
         t = typ[ok_idx][inside] - lg[inside]
         grid = np.unique(np.concatenate([np.linspace(a, b, 41), np.clip(t, a, b)]))
-        c = (np.log1p(((grid[:, None] - t[None, :]) / TYPICAL_SPREAD) ** 2).sum(axis=1)
-             + ((grid - np.log(prior_height)) / prior_sigma_log_height) ** 2)
+        c = (
+            np.log1p(((grid[:, None] - t[None, :]) / TYPICAL_SPREAD) ** 2).sum(axis=1)
+            + ((grid - np.log(prior_height)) / prior_sigma_log_height) ** 2
+        )
         k = int(np.argmin(c))
         cost = float(c[k] + ((deg - np.rad2deg(prior_pitch)) / prior_sigma_pitch_deg) ** 2)
         return (count, -cost), th, float(grid[k]), [use[i].key for i in ok_idx[inside]]
@@ -136,7 +153,9 @@ def fit_camera(anchors: list[Anchor], fy: float, cy: float, prior_height: float,
     return CameraFit(float(np.exp(lh)), float(th), "fit", len(use), sorted(keys), status)
 
 
-def implied_height(camera_height: float, pitch: float, fy: float, cy: float, v_bottom: float, v_top: float) -> float | None:
+def implied_height(
+    camera_height: float, pitch: float, fy: float, cy: float, v_bottom: float, v_top: float
+) -> float | None:
     """Height of an upright object standing on the ground with these edge rows (None: contact at or
     above the horizon)."""
     b = pitch + np.arctan((v_bottom - cy) / fy)

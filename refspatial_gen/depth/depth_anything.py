@@ -23,8 +23,12 @@ def _dir_exists(v: str) -> str | None:
 
 
 RELATIVE_OPTIONS = {
-    "output": Field(str, default="auto", choices=("auto", "disparity", "depth", "metric"),
-                    doc="what the model predicts; auto reads the model config"),
+    "output": Field(
+        str,
+        default="auto",
+        choices=("auto", "disparity", "depth", "metric"),
+        doc="what the model predicts; auto reads the model config",
+    ),
     "scale_recovery": Field(str, default="contacts", choices=METHODS, doc="how relative output becomes metric"),
     "camera_height": Field(float, default=1.5, min=0.05, doc="prior for scale recovery (m)"),
     "pitch_deg": Field(float, default=0.0, min=-60.0, doc="prior downward pitch for scale recovery"),
@@ -65,8 +69,9 @@ class RelativeToMetric:
         else:
             h = prior.camera_height if prior.camera_height is not None else self.camera_height
             p = prior.pitch if prior.pitch is not None else float(np.deg2rad(self.pitch_deg))
-            d, how, meta = recover_metric(pred, kind, prior, self.scale_recovery, h, p, self.median_depth,
-                                          np.random.default_rng(0))  # fixed seed: a pure function of the image
+            d, how, meta = recover_metric(
+                pred, kind, prior, self.scale_recovery, h, p, self.median_depth, np.random.default_rng(0)
+            )  # fixed seed: a pure function of the image
             origin, metric = f"{name}:{kind}+{how}", self.scale_recovery != "none"
         d[d > self.max_depth] = 0.0
         return DepthResult(d, metric, origin, meta)
@@ -74,12 +79,23 @@ class RelativeToMetric:
 
 class DepthAnythingDepth(RelativeToMetric):
     name = "depth-anything"
-    OPTIONS = {"model_dir": Field(str, required=True, check=_dir_exists, doc="local save_pretrained folder"),
-               "threads": Field(int, default=1, min=1, doc="torch CPU threads"), **RELATIVE_OPTIONS}
+    OPTIONS = {
+        "model_dir": Field(str, required=True, check=_dir_exists, doc="local save_pretrained folder"),
+        "threads": Field(int, default=1, min=1, doc="torch CPU threads"),
+        **RELATIVE_OPTIONS,
+    }
 
-    def __init__(self, model_dir: str, threads: int = 1, output: str = "auto", scale_recovery: str = "contacts",
-                 camera_height: float = 1.5, pitch_deg: float = 0.0, median_depth: float | None = None,
-                 max_depth: float = 80.0) -> None:
+    def __init__(
+        self,
+        model_dir: str,
+        threads: int = 1,
+        output: str = "auto",
+        scale_recovery: str = "contacts",
+        camera_height: float = 1.5,
+        pitch_deg: float = 0.0,
+        median_depth: float | None = None,
+        max_depth: float = 80.0,
+    ) -> None:
         msg = _dir_exists(model_dir)
         if msg:
             raise FileNotFoundError(msg)
@@ -98,6 +114,7 @@ class DepthAnythingDepth(RelativeToMetric):
         inputs = proc(images=np.ascontiguousarray(rgb), return_tensors="pt")
         with torch.no_grad():
             pred = model(**inputs).predicted_depth
-        pred = torch.nn.functional.interpolate(pred[:, None].float(), size=(prior.height, prior.width),
-                                               mode="bicubic", align_corners=False)[0, 0].numpy()
+        pred = torch.nn.functional.interpolate(
+            pred[:, None].float(), size=(prior.height, prior.width), mode="bicubic", align_corners=False
+        )[0, 0].numpy()
         return self._finish(pred, kind, prior, "depth-anything")

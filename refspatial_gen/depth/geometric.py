@@ -102,8 +102,8 @@ def contact_visible_on(o: _Obj, b_mask: np.ndarray, band: float) -> bool:
     if y1 < y0:
         return False
     H, W = b_mask.shape
-    left = b_mask[y0:y1 + 1, max(0, x0 - w):x0]
-    right = b_mask[y0:y1 + 1, x1 + 1:min(W, x1 + 1 + w)]
+    left = b_mask[y0 : y1 + 1, max(0, x0 - w) : x0]
+    right = b_mask[y0 : y1 + 1, x1 + 1 : min(W, x1 + 1 + w)]
     return bool(left.any() or right.any())
 
 
@@ -114,32 +114,75 @@ class GeometricDepth:
         "pitch_deg": Field(float, default=0.0, min=-60.0, doc="downward camera pitch (degrees)"),
         "max_depth": Field(float, default=60.0, min=1.0, doc="objects placed farther are dropped (m)"),
         "support": Field(bool, default=True, doc="objects may rest on objects below them in the image"),
-        "bearing": Field(bool, default=True, doc="an object rests only on one whose category can bear it "
-                                                  "(truth/data/bearing.yaml); else it stands behind it"),
-        "contact_band": Field(float, default=0.15, min=0.0,
-                              doc="resting needs the lower object's mask beside the foot, up to this fraction "
-                                  "of the object's height above it (its top surface is visible there)"),
-        "rest_share": Field(float, default=1 / 3, min=0.0, max=1.0,
-                            doc="an object may rest on another whose mask lies under this share of its bottom edge"),
-        "occluded_share": Field(float, default=0.1, min=0.0, max=1.0,
-                                doc="an object with another's mask under this share of its bottom edge (less than "
-                                    "rest_share) has its foot partly hidden: it stands behind, never on it"),
-        "occluded": Field(str, default="category_height", choices=OCCLUDED_MODES,
-                          doc="an object whose foot is hidden behind another: placed on the ground behind it "
-                              "by its category's typical height, or dropped (contact_occluded)"),
-        "max_size_ratio": Field(float, default=1.15, min=0.0,
-                                doc="drop objects placed taller than this times the top of their category's "
-                                    "height range (0 = no check)"),
-        "size_fallback": Field(bool, default=False,
-                               doc="place objects without a usable contact by their category's typical height "
-                                   "(per-object forcing; only when the mask does not touch the image border)"),
+        "bearing": Field(
+            bool,
+            default=True,
+            doc="an object rests only on one whose category can bear it "
+            "(truth/data/bearing.yaml); else it stands behind it",
+        ),
+        "contact_band": Field(
+            float,
+            default=0.15,
+            min=0.0,
+            doc="resting needs the lower object's mask beside the foot, up to this fraction "
+            "of the object's height above it (its top surface is visible there)",
+        ),
+        "rest_share": Field(
+            float,
+            default=1 / 3,
+            min=0.0,
+            max=1.0,
+            doc="an object may rest on another whose mask lies under this share of its bottom edge",
+        ),
+        "occluded_share": Field(
+            float,
+            default=0.1,
+            min=0.0,
+            max=1.0,
+            doc="an object with another's mask under this share of its bottom edge (less than "
+            "rest_share) has its foot partly hidden: it stands behind, never on it",
+        ),
+        "occluded": Field(
+            str,
+            default="category_height",
+            choices=OCCLUDED_MODES,
+            doc="an object whose foot is hidden behind another: placed on the ground behind it "
+            "by its category's typical height, or dropped (contact_occluded)",
+        ),
+        "max_size_ratio": Field(
+            float,
+            default=1.15,
+            min=0.0,
+            doc="drop objects placed taller than this times the top of their category's height range (0 = no check)",
+        ),
+        "size_fallback": Field(
+            bool,
+            default=False,
+            doc="place objects without a usable contact by their category's typical height "
+            "(per-object forcing; only when the mask does not touch the image border)",
+        ),
     }
 
-    def __init__(self, camera_height: float = 1.5, pitch_deg: float = 0.0, max_depth: float = 60.0,
-                 support: bool = True, bearing: bool = True, contact_band: float = 0.15, rest_share: float = 1 / 3,
-                 occluded_share: float = 0.1, occluded: str = "category_height", max_size_ratio: float = 1.15,
-                 size_fallback: bool = False) -> None:
-        self.camera_height, self.pitch, self.max_depth, self.support = camera_height, np.deg2rad(pitch_deg), max_depth, support
+    def __init__(
+        self,
+        camera_height: float = 1.5,
+        pitch_deg: float = 0.0,
+        max_depth: float = 60.0,
+        support: bool = True,
+        bearing: bool = True,
+        contact_band: float = 0.15,
+        rest_share: float = 1 / 3,
+        occluded_share: float = 0.1,
+        occluded: str = "category_height",
+        max_size_ratio: float = 1.15,
+        size_fallback: bool = False,
+    ) -> None:
+        self.camera_height, self.pitch, self.max_depth, self.support = (
+            camera_height,
+            np.deg2rad(pitch_deg),
+            max_depth,
+            support,
+        )
         self.bearing, self.contact_band, self.occluded = bearing, contact_band, occluded
         self.rest_share, self.occluded_share = rest_share, occluded_share
         self.max_size_ratio, self.size_fallback = max_size_ratio, size_fallback
@@ -167,8 +210,9 @@ class GeometricDepth:
         implied = o.rows * z / fy
         return implied if implied > self.max_size_ratio * hb[1] else None
 
-    def _behind_depth(self, o: _Obj, z_occluder: float, h: float, pitch: float, P: CameraPrior,
-                      thickness: float) -> float | None:
+    def _behind_depth(
+        self, o: _Obj, z_occluder: float, h: float, pitch: float, P: CameraPrior, thickness: float
+    ) -> float | None:
         """Horizontal distance of an object standing on the ground behind an occluder: where its top row
         puts its top at its category's typical height, but never nearer than the occluder's back
         (`z_occluder` + `thickness`); the height that distance implies must be inside the category's
@@ -188,7 +232,7 @@ class GeometricDepth:
         return float(d)
 
     def _on_or_behind(self, o: _Obj, b: _Obj, z_b: float, P: CameraPrior, share: float) -> str:
-        """"on" when `o` may rest on `b` (enough of its foot on it, bearing, visible contact, plausible
+        """ "on" when `o` may rest on `b` (enough of its foot on it, bearing, visible contact, plausible
         height), else "behind"."""
         if share < self.rest_share:
             return "behind"
@@ -269,12 +313,28 @@ class GeometricDepth:
             zz = np.where(zz <= self.max_depth, zz, 0.0)
             depth[g] = zz.astype(np.float32)
         horizon = P.cy - P.fy * np.tan(pitch)
-        meta = {"objects": {str(k): notes[k] for k in sorted(notes)}, "camera_height": h, "pitch": pitch,
-                "horizon_row": float(horizon)}
+        meta = {
+            "objects": {str(k): notes[k] for k in sorted(notes)},
+            "camera_height": h,
+            "pitch": pitch,
+            "horizon_row": float(horizon),
+        }
         return DepthResult(depth, True, f"geometric:h={h:.2f},pitch={np.rad2deg(pitch):.1f}deg", meta)
 
-    def _place(self, o: _Obj, b: _Obj | None, share: float, planes: dict, notes: dict, P: CameraPrior, h: float,
-               pitch: float, up: np.ndarray, fwd: np.ndarray, H: int) -> dict:
+    def _place(
+        self,
+        o: _Obj,
+        b: _Obj | None,
+        share: float,
+        planes: dict,
+        notes: dict,
+        P: CameraPrior,
+        h: float,
+        pitch: float,
+        up: np.ndarray,
+        fwd: np.ndarray,
+        H: int,
+    ) -> dict:
         """Contact note of one object: {"contact", "_offset" (billboard n.P), ...} or {"contact": "none", "reason"}."""
         v = o.vb + 1.0  # the lower edge of the mask's lowest pixel row
         ray = np.array([(o.u - P.cx) / P.fx, (v - P.cy) / P.fy, 1.0])
@@ -294,8 +354,13 @@ class GeometricDepth:
                 d = self._behind_depth(o, z_b, h, pitch, P, thickness)
                 if d is None:
                     return {"contact": "none", "reason": "contact_occluded", "occluder": b.oid, **base}
-                return {"contact": f"behind:{b.oid}", "_offset": d, "contact_depth": d, "depth_from": "category_height",
-                        **base}
+                return {
+                    "contact": f"behind:{b.oid}",
+                    "_offset": d,
+                    "contact_depth": d,
+                    "depth_from": "category_height",
+                    **base,
+                }
         elif b is not None:  # the object under it could not be placed: neither can this one be
             return {"contact": "none", "reason": "no_ground_contact", **base}
         else:

@@ -36,7 +36,9 @@ class OnnxDepth(RelativeToMetric):
     name = "onnx"
     OPTIONS = {
         "model_path": Field(str, required=True, check=_file_exists, doc="local .onnx file"),
-        "input_size": Field(list, default=None, doc="[height, width] fed to the model (default: its static shape, else 518)"),
+        "input_size": Field(
+            list, default=None, doc="[height, width] fed to the model (default: its static shape, else 518)"
+        ),
         "mean": Field(list, default=[0.485, 0.456, 0.406]),
         "std": Field(list, default=[0.229, 0.224, 0.225]),
         "threads": Field(int, default=1, min=1),
@@ -44,10 +46,20 @@ class OnnxDepth(RelativeToMetric):
         "output": Field(str, default="disparity", choices=("disparity", "depth", "metric")),
     }
 
-    def __init__(self, model_path: str, input_size: list | None = None, mean: list | None = None,
-                 std: list | None = None, threads: int = 1, output: str = "disparity",
-                 scale_recovery: str = "contacts", camera_height: float = 1.5, pitch_deg: float = 0.0,
-                 median_depth: float | None = None, max_depth: float = 80.0) -> None:
+    def __init__(
+        self,
+        model_path: str,
+        input_size: list | None = None,
+        mean: list | None = None,
+        std: list | None = None,
+        threads: int = 1,
+        output: str = "disparity",
+        scale_recovery: str = "contacts",
+        camera_height: float = 1.5,
+        pitch_deg: float = 0.0,
+        median_depth: float | None = None,
+        max_depth: float = 80.0,
+    ) -> None:
         msg = _file_exists(model_path)
         if msg:
             raise FileNotFoundError(msg)
@@ -56,7 +68,12 @@ class OnnxDepth(RelativeToMetric):
         self.mean = np.asarray(mean if mean is not None else [0.485, 0.456, 0.406], np.float32)
         self.std = np.asarray(std if std is not None else [0.229, 0.224, 0.225], np.float32)
         self.threads, self.output, self.scale_recovery = threads, output, scale_recovery
-        self.camera_height, self.pitch_deg, self.median_depth, self.max_depth = camera_height, pitch_deg, median_depth, max_depth
+        self.camera_height, self.pitch_deg, self.median_depth, self.max_depth = (
+            camera_height,
+            pitch_deg,
+            median_depth,
+            max_depth,
+        )
 
     def estimate(self, rgb: np.ndarray, prior: CameraPrior) -> DepthResult:
         import cv2

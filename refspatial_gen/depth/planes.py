@@ -49,9 +49,17 @@ def point_normals(points: np.ndarray, which: np.ndarray | None = None, k: int = 
     return out
 
 
-def ransac_plane(points: np.ndarray, rng: np.random.Generator, thresh: float, up: np.ndarray | None = None,
-                 max_tilt: float = np.deg2rad(40.0), iters: int = 256, score_points: int = 4000,
-                 vertical_to: np.ndarray | None = None, normals: np.ndarray | None = None) -> Plane | None:
+def ransac_plane(
+    points: np.ndarray,
+    rng: np.random.Generator,
+    thresh: float,
+    up: np.ndarray | None = None,
+    max_tilt: float = np.deg2rad(40.0),
+    iters: int = 256,
+    score_points: int = 4000,
+    vertical_to: np.ndarray | None = None,
+    normals: np.ndarray | None = None,
+) -> Plane | None:
     """Best plane (most inliers within `thresh`) whose normal lies within `max_tilt` of `up` (if given),
     or, with `vertical_to`, a vertical plane: normal within 10 degrees of perpendicular to that up.
     `normals` (per point, NaN = none; see `point_normals`) add `iters` one-point hypotheses."""
@@ -105,9 +113,16 @@ def ransac_plane(points: np.ndarray, rng: np.random.Generator, thresh: float, up
     return Plane(best_n, float(best_d), inl)
 
 
-def horizontal_planes(points: np.ndarray, rng: np.random.Generator, up: np.ndarray, thresh: float,
-                      min_inliers: int, max_planes: int = 3, max_tilt: float = np.deg2rad(40.0),
-                      normals: np.ndarray | None = None) -> list[Plane]:
+def horizontal_planes(
+    points: np.ndarray,
+    rng: np.random.Generator,
+    up: np.ndarray,
+    thresh: float,
+    min_inliers: int,
+    max_planes: int = 3,
+    max_tilt: float = np.deg2rad(40.0),
+    normals: np.ndarray | None = None,
+) -> list[Plane]:
     """Up to `max_planes` disjoint planes within `max_tilt` of `up`, each with >= `min_inliers` points,
     largest first. Later planes are required to be parallel to the first (within 10 degrees).
     `normals` (per point) seed one-point hypotheses (see the module docstring)."""
@@ -118,8 +133,9 @@ def horizontal_planes(points: np.ndarray, rng: np.random.Generator, up: np.ndarr
         if len(remaining) < min_inliers:
             break
         cone_up, tilt = (up, max_tilt) if not planes else (planes[0].n, np.deg2rad(10.0))
-        pl = ransac_plane(P[remaining], rng, thresh, cone_up, tilt,
-                          normals=None if normals is None else normals[remaining])
+        pl = ransac_plane(
+            P[remaining], rng, thresh, cone_up, tilt, normals=None if normals is None else normals[remaining]
+        )
         if pl is None or len(pl.inliers) < min_inliers:
             break
         planes.append(Plane(pl.n, pl.d, remaining[pl.inliers]))

@@ -42,7 +42,9 @@ def read_depth_file(path: str | Path) -> np.ndarray:
     return arr
 
 
-def decode_depth(raw: np.ndarray, encoding: str, scale: float | None = None, dataset_scale: float | None = None) -> np.ndarray:
+def decode_depth(
+    raw: np.ndarray, encoding: str, scale: float | None = None, dataset_scale: float | None = None
+) -> np.ndarray:
     """Raw array -> float32 metres, 0 for missing/invalid values."""
     if encoding == "float" or (encoding == "auto" and raw.dtype.kind == "f"):
         d = raw.astype(np.float32)
@@ -65,17 +67,29 @@ def decode_depth(raw: np.ndarray, encoding: str, scale: float | None = None, dat
 class ProvidedDepth:
     name = "provided"
     OPTIONS = {
-        "encoding": Field(str, default="auto", choices=("auto", "mm", "tum", "float", "scale"),
-                          doc="how the stored values map to metres"),
+        "encoding": Field(
+            str,
+            default="auto",
+            choices=("auto", "mm", "tum", "float", "scale"),
+            doc="how the stored values map to metres",
+        ),
         "scale": Field(float, default=None, min=1e-9, doc="stored units per metre (encoding: scale)"),
-        "pattern": Field(str, default="{stem}_depth.png",
-                         doc="depth file next to the image; {stem} = image name without extension, "
-                             "{dir} = image folder (e.g. '{dir}/../depth/{stem}.png')"),
+        "pattern": Field(
+            str,
+            default="{stem}_depth.png",
+            doc="depth file next to the image; {stem} = image name without extension, "
+            "{dir} = image folder (e.g. '{dir}/../depth/{stem}.png')",
+        ),
         "max_depth": Field(float, default=20.0, min=0.1, doc="values beyond this (metres) count as missing"),
     }
 
-    def __init__(self, encoding: str = "auto", scale: float | None = None, pattern: str = "{stem}_depth.png",
-                 max_depth: float = 20.0) -> None:
+    def __init__(
+        self,
+        encoding: str = "auto",
+        scale: float | None = None,
+        pattern: str = "{stem}_depth.png",
+        max_depth: float = 20.0,
+    ) -> None:
         if encoding == "scale" and not scale:
             raise ValueError("encoding 'scale' needs the option 'scale' (units per metre)")
         self.encoding, self.scale, self.pattern, self.max_depth = encoding, scale, pattern, max_depth
@@ -92,8 +106,10 @@ class ProvidedDepth:
             raise DropUnit("depth_missing", "the provided-depth estimator got no depth file")
         raw = read_depth_file(prior.depth_path)
         if raw.shape != (prior.height, prior.width):
-            raise DropUnit("depth_size_mismatch",
-                           f"{prior.depth_path}: depth is {raw.shape[1]}x{raw.shape[0]}, image {prior.width}x{prior.height}")
+            raise DropUnit(
+                "depth_size_mismatch",
+                f"{prior.depth_path}: depth is {raw.shape[1]}x{raw.shape[0]}, image {prior.width}x{prior.height}",
+            )
         d = decode_depth(raw, self.encoding, self.scale, prior.depth_scale)
         d[d > self.max_depth] = 0.0
         return DepthResult(d, True, f"provided:{self.encoding}", {"file": Path(prior.depth_path).name})

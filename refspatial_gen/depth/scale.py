@@ -41,12 +41,17 @@ def contact_anchors(prior: CameraPrior, camera_height: float, pitch: float) -> l
     g = GeometricDepth(camera_height=camera_height, pitch_deg=float(np.rad2deg(pitch)), support=False)
     res = g.estimate(np.zeros((prior.height, prior.width, 3), np.uint8), prior)
     out = []
-    for k, note in sorted(res.meta["objects"].items(), key=lambda kv: int(kv[0])):
+    for _k, note in sorted(res.meta["objects"].items(), key=lambda kv: int(kv[0])):
         if note.get("contact") == "ground" and not note.get("truncated"):
             u, v = note["contact_px"]
             # continuous contact (lower edge of the lowest row) -> that row's pixel index
-            out.append((int(min(prior.width - 1, np.floor(u))), int(min(prior.height - 1, np.ceil(v) - 1)),
-                        float(note["contact_depth"])))
+            out.append(
+                (
+                    int(min(prior.width - 1, np.floor(u))),
+                    int(min(prior.height - 1, np.ceil(v) - 1)),
+                    float(note["contact_depth"]),
+                )
+            )
     return out
 
 
@@ -56,8 +61,16 @@ def _sample(pred: np.ndarray, u: int, v: int, r: int = 2) -> float:
     return float(np.median(vals)) if vals.size else 0.0
 
 
-def recover_metric(pred: np.ndarray, kind: str, prior: CameraPrior, method: str, camera_height: float,
-                   pitch: float, median_depth: float | None, rng: np.random.Generator) -> tuple[np.ndarray, str, dict]:
+def recover_metric(
+    pred: np.ndarray,
+    kind: str,
+    prior: CameraPrior,
+    method: str,
+    camera_height: float,
+    pitch: float,
+    median_depth: float | None,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, str, dict]:
     """Relative prediction (`kind` "disparity" or "depth") -> (metric depth float32, origin, meta)."""
     if method == "none":
         return _to_relative_depth(pred, kind).astype(np.float32), "relative", {}

@@ -60,6 +60,12 @@ def _r(x: Any, nd: int = 3) -> Any:
     return round(float(x), nd)
 
 
+def _exact(x: Any) -> list[float]:
+    """Full-precision values for attributes the relation tables decide on (sizes, between, sectors): the
+    verifier decides on the geometry itself, so a rounded copy could fall on the other side of a margin."""
+    return [float(v) for v in np.asarray(x, float).ravel()]
+
+
 def _ordinals(values: np.ndarray, groups: dict[str, list[int]]) -> np.ndarray:
     """1-based rank of each object among its category by `values` (ascending)."""
     out = np.zeros(len(values), dtype=int)
@@ -87,11 +93,11 @@ def make_nodes(geom: SceneGeom) -> list[Node]:
         attrs = {
             "color": geom.colours[i],
             "color_from": geom.colour_how[i],
-            "center": _r(geom.centers[i], 5),
+            "center": _exact(geom.centers[i]),
             "size": _r(geom.boxes[i].size, 4),
-            "height": _r(geom.height[i], 5),
-            "width": _r(geom.width[i], 5),
-            "volume": float(f"{geom.volume[i]:.5g}"),
+            "height": float(geom.height[i]),
+            "width": float(geom.width[i]),
+            "volume": float(geom.volume[i]),
             "img_xy": _r(geom.img_centroid[i], 4),
             "near_depth": _r(geom.near_depth[i]),
             "visible_px": int(geom.mask_area[i]),
@@ -100,7 +106,7 @@ def make_nodes(geom: SceneGeom) -> list[Node]:
             "height_rank": int(h_rank[i]),
             "size_rank": int(v_rank[i]),
             "category_count": len(groups[o.category]),
-            "front": _r(hf[i], 5) if np.isfinite(hf[i]).all() else None,
+            "front": _exact(hf[i]) if np.isfinite(hf[i]).all() else None,
             "surface": roots[i],
             "visible_fraction": round(float(o.visible_fraction), 4),
             "in_view": round(float(geom.in_view[i]), 4),

@@ -129,6 +129,8 @@ class SceneGeom:
         self.cam_centers = cam.world_to_cam(np.array([o.box.center for o in objs]).reshape(n, 3))
         cc = cam.world_to_cam(np.array([o.box.corners() for o in objs]).reshape(-1, 3)).reshape(n, 8, 3)
         self.near_depth = cc[:, :, 2].min(axis=1) if n else np.zeros(0)
+        self.cam_lo = cc.min(axis=1) if n else np.zeros((0, 3))  # box extents along the camera axes
+        self.cam_hi = cc.max(axis=1) if n else np.zeros((0, 3))
         self.center_depth = self.cam_centers[:, 2]
         # camera pose in the gravity world
         self.cam_rot_g = G @ cam.world_from_cam[:3, :3]

@@ -42,8 +42,8 @@ def ensure_models(families: tuple[str, ...]) -> Path:
 def model_times(photos: Path, n: int, families: tuple[str, ...], device: str = "auto") -> dict[str, Any]:
     """Milliseconds per photo by model stage (after one warm-up photo), full-size random models."""
     from refspatial_gen.perception.cache import content_hash
-    from refspatial_gen.perception.pipeline import Item, Perceiver
     from refspatial_gen.perception.config import normalise
+    from refspatial_gen.perception.pipeline import Item, Perceiver
     from refspatial_gen.perception.random_models import FOLDERS
     from refspatial_gen.sources.image.annotations import list_image_files
     from refspatial_gen.sources.image.source import decode_rgb
@@ -53,9 +53,14 @@ def model_times(photos: Path, n: int, families: tuple[str, ...], device: str = "
     seg = "sam2" if "sam2" in families else ("sam" if "sam" in families else None)
     dep = next((f for f in ("depth-anything", "depth-pro", "zoedepth") if f in families), None)
     section: dict[str, Any] = {
-        "models": str(root), "device": device, "threads": os.cpu_count() or 1, "batch_size": 1, "cache": False,
+        "models": str(root),
+        "device": device,
+        "threads": os.cpu_count() or 1,
+        "batch_size": 1,
+        "cache": False,
         "filters": {"duplicate_distance": -1, "blur_threshold": 0.0},
-        "detector": {"model": FOLDERS[det], "vocabulary": "coco", "threshold": 0.0, "max_detections": 10}}
+        "detector": {"model": FOLDERS[det], "vocabulary": "coco", "threshold": 0.0, "max_detections": 10},
+    }
     if seg:
         section["segmenter"] = {"model": FOLDERS[seg]}
     if dep:
@@ -70,9 +75,14 @@ def model_times(photos: Path, n: int, families: tuple[str, ...], device: str = "
             per.append({k: v - before.get(k, 0.0) for k, v in P.seconds.items()})
     m = max(len(per), 1)
     stages = {k: round(1000 * sum(x.get(k, 0.0) for x in per) / m, 1) for k in sorted({k for x in per for k in x})}
-    return {"images": len(per), "device": P.rt.device, "threads": P.rt.threads,
-            "models": {k: v["model"] for k, v in P.model_meta().items()}, "model_ms_by_stage": stages,
-            "model_ms": round(sum(stages.values()), 1)}
+    return {
+        "images": len(per),
+        "device": P.rt.device,
+        "threads": P.rt.threads,
+        "models": {k: v["model"] for k, v in P.model_meta().items()},
+        "model_ms_by_stage": stages,
+        "model_ms": round(sum(stages.values()), 1),
+    }
 
 
 class _Oracle:
@@ -85,8 +95,10 @@ class _Oracle:
         from refspatial_gen.perception.boxes import Detection
         from refspatial_gen.perception.cache import array_hash
 
-        return [[Detection(b, 0.9, lab) for b, lab, _ in self.answers.get(array_hash(im), []) if lab in labels]
-                for im in images]
+        return [
+            [Detection(b, 0.9, lab) for b, lab, _ in self.answers.get(array_hash(im), []) if lab in labels]
+            for im in images
+        ]
 
     def segment(self, images, boxes, multimask=True):
         from refspatial_gen.perception.boxes import iou_matrix
@@ -106,7 +118,7 @@ def overhead(photos: Path, n: int) -> dict[str, Any]:
     from refspatial_gen.core.errors import DropUnit
     from refspatial_gen.graph import build_graph
     from refspatial_gen.perception.cache import array_hash
-    from refspatial_gen.qa import load_qa_config, generate_qa
+    from refspatial_gen.qa import generate_qa, load_qa_config
     from refspatial_gen.sources.image import ImageSource
     from refspatial_gen.sources.image.annotations import annotation_mask, load_collection
     from refspatial_gen.sources.image.source import decode_rgb
@@ -120,24 +132,34 @@ def overhead(photos: Path, n: int) -> dict[str, Any]:
         rec = coll.images[iid]
         rgb = decode_rgb(rec.file)
         shutil.copy(rec.file, work / rec.file.name)
-        answers[array_hash(rgb)] = [(a.bbox, a.category, annotation_mask(a, rec, rgb.shape[1], rgb.shape[0])[0])
-                                    for a in rec.annotations]
+        answers[array_hash(rgb)] = [
+            (a.bbox, a.category, annotation_mask(a, rec, rgb.shape[1], rgb.shape[0])[0]) for a in rec.annotations
+        ]
     for name in ("det", "seg"):
         (work / "models" / name).mkdir(parents=True)
         (work / "models" / name / "config.json").write_text(
-            '{"model_type": "%s"}' % ("grounding-dino" if name == "det" else "sam"))
+            '{"model_type": "%s"}' % ("grounding-dino" if name == "det" else "sam")
+        )
     oracle = _Oracle(answers)
     saved = pipeline.load_model
     pipeline.load_model = lambda path, rt: oracle  # type: ignore[assignment]
     pipeline._perceiver.cache_clear()
-    section = {"models": str(work / "models"), "cache": False, "filters": {"duplicate_distance": -1},
-               "detector": {"model": "det", "vocabulary": "coco", "max_detections": 100},
-               "segmenter": {"model": "seg", "min_box_fill": 0.0}}
+    section = {
+        "models": str(work / "models"),
+        "cache": False,
+        "filters": {"duplicate_distance": -1},
+        "detector": {"model": "det", "vocabulary": "coco", "max_detections": 100},
+        "segmenter": {"model": "seg", "min_box_fill": 0.0},
+    }
     recipe = Path(__file__).resolve().parents[2] / "recipes" / "photos.yaml"
     data, lines = load_yaml(recipe)
     qa_cfg = load_qa_config(data["qa"], str(recipe), lines)
-    cfg = {"perception": section, "_input": str(work), "images_dir": ".",
-           "depth": {"estimator": "geometric", "max_size_ratio": 3.0, "size_fallback": True}}
+    cfg = {
+        "perception": section,
+        "_input": str(work),
+        "images_dir": ".",
+        "depth": {"estimator": "geometric", "max_size_ratio": 3.0, "size_fallback": True},
+    }
     times, qa_pairs, dropped = [], 0, 0
     try:
         for i, iid in enumerate(ids):
@@ -154,9 +176,13 @@ def overhead(photos: Path, n: int) -> dict[str, Any]:
         pipeline.load_model = saved
         pipeline._perceiver.cache_clear()
         shutil.rmtree(work, ignore_errors=True)
-    return {"images": len(times), "dropped": dropped, "qa_pairs": qa_pairs,
-            "overhead_ms": round(1000 * float(np.mean(times)), 1) if times else None,
-            "overhead_median_ms": round(1000 * float(np.median(times)), 1) if times else None}
+    return {
+        "images": len(times),
+        "dropped": dropped,
+        "qa_pairs": qa_pairs,
+        "overhead_ms": round(1000 * float(np.mean(times)), 1) if times else None,
+        "overhead_median_ms": round(1000 * float(np.median(times)), 1) if times else None,
+    }
 
 
 def per_image(photos: Path, n: int = 3, families: tuple[str, ...] = DEFAULT_FAMILIES, n_overhead: int = 20) -> dict:

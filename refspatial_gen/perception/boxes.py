@@ -74,9 +74,19 @@ def one_to_one(dets: list[Detection], duplicate_iou: float) -> tuple[list[Detect
     return kept, dropped
 
 
-def select(dets: list[Detection], width: int, height: int, *, threshold: float, thresholds: dict | None,
-           nms_iou: float, duplicate_iou: float, max_detections: int, min_box_fraction: float,
-           max_box_fraction: float) -> tuple[list[Detection], dict[str, int]]:
+def select(
+    dets: list[Detection],
+    width: int,
+    height: int,
+    *,
+    threshold: float,
+    thresholds: dict | None,
+    nms_iou: float,
+    duplicate_iou: float,
+    max_detections: int,
+    min_box_fraction: float,
+    max_box_fraction: float,
+) -> tuple[list[Detection], dict[str, int]]:
     """The detector's raw boxes -> kept detections (best first) and counts of what was dropped, by reason."""
     drops: Counter = Counter()
     per_cat = thresholds or {}
@@ -84,7 +94,12 @@ def select(dets: list[Detection], width: int, height: int, *, threshold: float, 
     live = []
     for d in dets:
         x0, y0, x1, y1 = d.box
-        d.box = (max(0.0, min(x0, width)), max(0.0, min(y0, height)), max(0.0, min(x1, width)), max(0.0, min(y1, height)))
+        d.box = (
+            max(0.0, min(x0, width)),
+            max(0.0, min(y0, height)),
+            max(0.0, min(x1, width)),
+            max(0.0, min(y1, height)),
+        )
         if d.score < float(per_cat.get(d.label, threshold)):
             drops["below_threshold"] += 1
         elif d.area() < min_box_fraction * img_area or d.area() <= 0:
@@ -109,8 +124,9 @@ def select(dets: list[Detection], width: int, height: int, *, threshold: float, 
     return kept, {k: v for k, v in sorted(drops.items()) if v}
 
 
-def match_one_to_one(a: list[tuple[float, float, float, float]], b: list[tuple[float, float, float, float]],
-                     min_iou: float = 0.5) -> list[tuple[int, int, float]]:
+def match_one_to_one(
+    a: list[tuple[float, float, float, float]], b: list[tuple[float, float, float, float]], min_iou: float = 0.5
+) -> list[tuple[int, int, float]]:
     """Pairs (i, j, iou) of boxes a[i], b[j] maximising the total IoU, each box in at most one pair, IoU >= min_iou."""
     if not a or not b:
         return []

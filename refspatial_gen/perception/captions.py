@@ -81,7 +81,7 @@ def _crop(rgb: np.ndarray, bbox: tuple[float, float, float, float], pad: float =
     px, py = (x1 - x0) * pad, (y1 - y0) * pad
     a, b = int(max(0, np.floor(x0 - px))), int(max(0, np.floor(y0 - py)))
     c, d = int(min(W, np.ceil(x1 + px))), int(min(H, np.ceil(y1 + py)))
-    return np.ascontiguousarray(rgb[b:max(d, b + 1), a:max(c, a + 1)])
+    return np.ascontiguousarray(rgb[b : max(d, b + 1), a : max(c, a + 1)])
 
 
 def material_of(P, content: str, rgb: np.ndarray, bbox, cat: str) -> str | None:
@@ -89,8 +89,12 @@ def material_of(P, content: str, rgb: np.ndarray, bbox, cat: str) -> str | None:
     words = [str(w) for w in m["words"]]
     prompts = [f"a photo of a {w} {cat}" for w in words]
     box = [round(float(x), 1) for x in bbox]
-    arr, _ = P.cached("material", content, [box, prompts],
-                      lambda: ({"p": P.model("material").scores([_crop(rgb, bbox)], prompts)[0].astype(np.float32)}, {}))
+    arr, _ = P.cached(
+        "material",
+        content,
+        [box, prompts],
+        lambda: ({"p": P.model("material").scores([_crop(rgb, bbox)], prompts)[0].astype(np.float32)}, {}),
+    )
     p = arr["p"].astype(np.float64)
     order = np.argsort(-p, kind="stable")
     return words[int(order[0])] if len(p) < 2 or p[order[0]] - p[order[1]] >= m["min_margin"] else None
@@ -100,8 +104,12 @@ def description_of(P, content: str, rgb: np.ndarray, bbox, cat: str) -> str:
     v = P.cfg["captions"]["vlm"]
     prompt = v["prompt"].format(category=cat)
     box = [round(float(x), 1) for x in bbox]
-    _, meta = P.cached("vlm", content, [box, prompt, v["max_new_tokens"]],
-                       lambda: ({}, {"text": P.model("vlm").describe([_crop(rgb, bbox)], [prompt], v["max_new_tokens"])[0]}))
+    _, meta = P.cached(
+        "vlm",
+        content,
+        [box, prompt, v["max_new_tokens"]],
+        lambda: ({}, {"text": P.model("vlm").describe([_crop(rgb, bbox)], [prompt], v["max_new_tokens"])[0]}),
+    )
     return str(meta["text"])
 
 

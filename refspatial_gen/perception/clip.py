@@ -3,8 +3,8 @@
 Text embeddings are computed once per prompt list and kept for the worker's life. Scores are
 probabilities: for CLIP a softmax over the prompts asked together (CLIP was trained contrastively across
 texts), for SigLIP the sigmoid of each pair (SigLIP was trained with a per-pair sigmoid loss; its logit
-bias is applied). Text is padded to the model's full length, as SigLIP was trained (and read without a mask). Every image is resized
-to the same input, so any images batch together.
+bias is applied). Text is padded to the model's full length, as SigLIP was trained (and read without a
+mask). Every image is resized to the same input, so any images batch together.
 """
 
 from __future__ import annotations
@@ -35,8 +35,9 @@ class ClipScorer:
             n = int(self.model.config.text_config.max_position_embeddings)
             embs = []
             for i in range(0, len(texts), 256):
-                enc = self.processor.tokenizer(list(texts[i:i + 256]), padding="max_length", max_length=n,
-                                               truncation=True, return_tensors="pt")
+                enc = self.processor.tokenizer(
+                    list(texts[i : i + 256]), padding="max_length", max_length=n, truncation=True, return_tensors="pt"
+                )
                 enc = {k: v.to(self.rt.device) for k, v in enc.items() if k in ("input_ids", "attention_mask")}
                 if self.sigmoid:
                     enc.pop("attention_mask", None)  # SigLIP reads max-length padded text without a mask

@@ -22,14 +22,19 @@ INTRINSICS_ORDER = ("provided", "exif", "model", "prior")
 FILTER_FIELDS: dict[str, Field] = {
     "min_side": Field(int, default=200, min=1, doc="drop images whose shorter side is smaller (pixels)"),
     "max_aspect": Field(float, default=4.0, min=1.0, doc="drop panoramas and strips beyond this aspect ratio"),
-    "blur_threshold": Field(float, default=20.0, min=0.0,
-                            doc="variance of the Laplacian of the grey image at 512 px on the long side"),
+    "blur_threshold": Field(
+        float, default=20.0, min=0.0, doc="variance of the Laplacian of the grey image at 512 px on the long side"
+    ),
     "min_brightness": Field(float, default=25.0, min=0.0, max=255.0, doc="mean grey level below: too dark"),
     "max_brightness": Field(float, default=235.0, min=0.0, max=255.0, doc="mean grey level above: washed out"),
     "max_clipped": Field(float, default=0.4, min=0.0, max=1.0, doc="largest share of pixels at 0 or 255"),
-    "duplicate_distance": Field(int, default=3, min=-1, max=64,
-                                doc="64-bit difference hash: an image this close to an earlier one is a duplicate "
-                                    "(-1 turns the check off)"),
+    "duplicate_distance": Field(
+        int,
+        default=3,
+        min=-1,
+        max=64,
+        doc="64-bit difference hash: an image this close to an earlier one is a duplicate (-1 turns the check off)",
+    ),
     "clip": Field(dict, default=None, doc="{model, positive: [...], negative: [...], min_margin}"),
 }
 CLIP_FILTER_FIELDS: dict[str, Field] = {
@@ -40,15 +45,23 @@ CLIP_FILTER_FIELDS: dict[str, Field] = {
 }
 DETECTOR_FIELDS: dict[str, Field] = {
     "model": Field(str, required=True, doc="Grounding DINO or OWLv2 folder"),
-    "vocabulary": Field((str, list), default="coco",
-                        doc="coco | lvis | lvis-frequent | openimages | a list of names | a .txt file (one a line)"),
+    "vocabulary": Field(
+        (str, list),
+        default="coco",
+        doc="coco | lvis | lvis-frequent | openimages | a list of names | a .txt file (one a line)",
+    ),
     "exclude": Field(list, default=None, doc="names never prompted"),
     "prompt_template": Field(str, default="{}", doc="text around each name, e.g. 'a photo of a {}' for OWLv2"),
     "threshold": Field(float, default=0.3, min=0.0, max=1.0, doc="default per-category score threshold"),
     "thresholds": Field(dict, default=None, doc="per-category score thresholds {name: value}"),
     "nms_iou": Field(float, default=0.5, min=0.0, max=1.0, doc="non-maximum suppression within a category"),
-    "duplicate_iou": Field(float, default=0.85, min=0.0, max=1.0,
-                           doc="one box, several names: keep the best name (boxes stay one-to-one with objects)"),
+    "duplicate_iou": Field(
+        float,
+        default=0.85,
+        min=0.0,
+        max=1.0,
+        doc="one box, several names: keep the best name (boxes stay one-to-one with objects)",
+    ),
     "max_detections": Field(int, default=30, min=1),
     "min_box_fraction": Field(float, default=0.0005, min=0.0, max=1.0, doc="smallest box area / image area"),
     "max_box_fraction": Field(float, default=0.9, min=0.0, max=1.0, doc="larger boxes are the scene, not an object"),
@@ -85,8 +98,9 @@ CAPTION_FIELDS: dict[str, Field] = {
 }
 FUSION_FIELDS: dict[str, Field] = {
     "voxel": Field(float, default=0.02, min=0.002, doc="metres: point cloud grid of a fused object"),
-    "match_overlap": Field(float, default=0.25, min=0.0, max=1.0,
-                           doc="share of a detection's points near an object's points to join it"),
+    "match_overlap": Field(
+        float, default=0.25, min=0.0, max=1.0, doc="share of a detection's points near an object's points to join it"
+    ),
     "min_views": Field(int, default=1, min=1, doc="an object must be detected in this many key frames"),
     "min_points": Field(int, default=80, min=3),
     "max_frames": Field(int, default=30, min=1, doc="key frames of a sequence used for fusion"),
@@ -97,7 +111,9 @@ PERCEPTION_FIELDS: dict[str, Field] = {
     "threads": Field(int, default=1, min=1, doc="torch CPU threads per worker"),
     "batch_size": Field(int, default=4, min=1, doc="images per model call (fixed blocks of the sorted image list)"),
     "cache": Field(bool, default=True, doc="keep model outputs on disk, keyed by image, model and settings"),
-    "cache_dir": Field(str, default=None, doc="default $REFSPATIAL_CACHE/perception or ~/.cache/refspatial-gen/perception"),
+    "cache_dir": Field(
+        str, default=None, doc="default $REFSPATIAL_CACHE/perception or ~/.cache/refspatial-gen/perception"
+    ),
     "images_dir": Field(str, default=None, doc="image folder inside the input (default: images/ when present)"),
     "filters": Field(dict, default=None, doc="cheap image filters and an optional CLIP/SigLIP filter"),
     "tagger": Field(dict, default=None, doc="CLIP/SigLIP: narrow the vocabulary to each image's top names"),
@@ -109,13 +125,22 @@ PERCEPTION_FIELDS: dict[str, Field] = {
     "fusion": Field(dict, default=None, doc="box-less scans: multi-view fusion settings"),
 }
 SUBSECTIONS: dict[str, dict[str, Field]] = {
-    "filters": FILTER_FIELDS, "tagger": TAGGER_FIELDS, "detector": DETECTOR_FIELDS, "segmenter": SEGMENTER_FIELDS,
-    "depth": DEPTH_FIELDS, "captions": CAPTION_FIELDS, "fusion": FUSION_FIELDS,
+    "filters": FILTER_FIELDS,
+    "tagger": TAGGER_FIELDS,
+    "detector": DETECTOR_FIELDS,
+    "segmenter": SEGMENTER_FIELDS,
+    "depth": DEPTH_FIELDS,
+    "captions": CAPTION_FIELDS,
+    "fusion": FUSION_FIELDS,
 }
 ROLE_FAMILIES: dict[str, tuple[str, ...]] = {
-    "detector": ("grounding-dino", "owlv2"), "segmenter": ("sam", "sam2"),
-    "depth": ("depth-anything", "depth-pro", "zoedepth"), "tagger": ("clip", "siglip"),
-    "filters.clip": ("clip", "siglip"), "captions.material": ("clip", "siglip"), "captions.vlm": ("vlm",),
+    "detector": ("grounding-dino", "owlv2"),
+    "segmenter": ("sam", "sam2"),
+    "depth": ("depth-anything", "depth-pro", "zoedepth"),
+    "tagger": ("clip", "siglip"),
+    "filters.clip": ("clip", "siglip"),
+    "captions.material": ("clip", "siglip"),
+    "captions.vlm": ("vlm",),
 }
 
 
@@ -139,8 +164,10 @@ def model_problem(name: str, section: dict[str, Any] | None, families: tuple[str
 
     p = resolve_model(name, section)
     if not p.is_dir():
-        return (f"model folder {str(p)!r} does not exist (models are never downloaded; docs/perception.md "
-                f"says which checkpoint to place there)")
+        return (
+            f"model folder {str(p)!r} does not exist (models are never downloaded; docs/perception.md "
+            f"says which checkpoint to place there)"
+        )
     cfg = p / "config.json"
     if not cfg.is_file():
         return f"model folder {str(p)!r} has no config.json (not a save_pretrained folder)"
@@ -152,8 +179,10 @@ def model_problem(name: str, section: dict[str, Any] | None, families: tuple[str
     if fam not in families:
         return f"model folder {str(p)!r} holds a {fam or 'unknown'} model; expected {' or '.join(families)}"
     if fam == "depth-anything" and conf.get("depth_estimation_type") != "metric":
-        return (f"model folder {str(p)!r} holds a relative Depth Anything model; perception needs a metric one "
-                f"(relative models: the image source's `depth: {{estimator: depth-anything}}`)")
+        return (
+            f"model folder {str(p)!r} holds a relative Depth Anything model; perception needs a metric one "
+            f"(relative models: the image source's `depth: {{estimator: depth-anything}}`)"
+        )
     return None
 
 
@@ -235,5 +264,9 @@ def check_perception(value: Any) -> str | None:
 
 def perception_field() -> Field:
     """The Field a source adds to its CONFIG_FIELDS."""
-    return Field(dict, default=None, check=check_perception,
-                 doc="open-vocabulary perception from local models (docs/perception.md)")
+    return Field(
+        dict,
+        default=None,
+        check=check_perception,
+        doc="open-vocabulary perception from local models (docs/perception.md)",
+    )

@@ -27,8 +27,15 @@ class DepthPrediction:
     focal: float | None  # the model's own focal length estimate (pixels), when it makes one
 
 
-def resolve(order: list[str], image_path: Path | None, width: int, height: int, hfov_deg: float,
-            pred: DepthPrediction | None, family: str | None) -> Intrinsics:
+def resolve(
+    order: list[str],
+    image_path: Path | None,
+    width: int,
+    height: int,
+    hfov_deg: float,
+    pred: DepthPrediction | None,
+    family: str | None,
+) -> Intrinsics:
     """The first intrinsics source in `order` that answers; the prior always does."""
     for src in order:
         if src == "provided" and image_path is not None:

@@ -35,6 +35,6 @@ class DepthAnythingMetric:
         out = []
         for b, img in enumerate(images):
             H, W = img.shape[:2]
-            d = torch.nn.functional.interpolate(pred[b:b + 1, None], size=(H, W), mode="bicubic", align_corners=False)
+            d = torch.nn.functional.interpolate(pred[b : b + 1, None], size=(H, W), mode="bicubic", align_corners=False)
             out.append(DepthPrediction(d[0, 0].cpu().numpy().astype(np.float32), False, None))
         return out

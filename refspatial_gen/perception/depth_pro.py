@@ -24,8 +24,12 @@ def _pre(path: str) -> dict:
     p = Path(path) / "preprocessor_config.json"
     d = json.loads(p.read_text(encoding="utf-8")) if p.is_file() else {}
     size = d.get("size") or {"height": 1536, "width": 1536}
-    return {"size": (int(size["height"]), int(size["width"])), "mean": tuple(d.get("image_mean") or (0.5,) * 3),
-            "std": tuple(d.get("image_std") or (0.5,) * 3), "rescale": float(d.get("rescale_factor") or 1 / 255)}
+    return {
+        "size": (int(size["height"]), int(size["width"])),
+        "mean": tuple(d.get("image_mean") or (0.5,) * 3),
+        "std": tuple(d.get("image_std") or (0.5,) * 3),
+        "rescale": float(d.get("rescale_factor") or 1 / 255),
+    }
 
 
 class DepthProMetric:
@@ -44,8 +48,9 @@ class DepthProMetric:
         std = torch.tensor(self.pre["std"]).view(1, 3, 1, 1)
         x = torch.from_numpy(np.stack(images).astype(np.float32)).permute(0, 3, 1, 2) * self.pre["rescale"]
         x = (x - mean) / std
-        return torch.nn.functional.interpolate(x, size=self.pre["size"], mode="bilinear", align_corners=False,
-                                               antialias=False)
+        return torch.nn.functional.interpolate(
+            x, size=self.pre["size"], mode="bilinear", align_corners=False, antialias=False
+        )
 
     def predict(self, images: list[np.ndarray]) -> list[DepthPrediction]:
         """Per image: depth for a focal length of 1 px (metres; times f_px gives metric depth) and the
@@ -58,8 +63,9 @@ class DepthProMetric:
         out = []
         for b, img in enumerate(images):
             H, W = img.shape[:2]
-            inv = torch.nn.functional.interpolate(res.predicted_depth.float()[b:b + 1, None].cpu(), size=(H, W),
-                                                  mode="bilinear", align_corners=False)[0, 0]
+            inv = torch.nn.functional.interpolate(
+                res.predicted_depth.float()[b : b + 1, None].cpu(), size=(H, W), mode="bilinear", align_corners=False
+            )[0, 0]
             fov = getattr(res, "field_of_view", None)
             deg = None if fov is None else float(fov.reshape(-1)[b])
             f_model = None

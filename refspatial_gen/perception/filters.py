@@ -95,7 +95,9 @@ def duplicates(hashes: list[tuple[str, int | None]], distance: int) -> dict[str,
 
 
 @lru_cache(maxsize=4)
-def duplicate_index(listing: tuple[tuple[str, str, int, int], ...], distance: int, cache_dir: str | None) -> dict[str, str]:
+def duplicate_index(
+    listing: tuple[tuple[str, str, int, int], ...], distance: int, cache_dir: str | None
+) -> dict[str, str]:
     """Duplicates over a collection listing ((id, path, size, mtime_ns) sorted by id), computed once per
     process and kept on disk next to the model cache (keyed by the listing)."""
     from refspatial_gen.perception.cache import key_of
@@ -123,8 +125,10 @@ def clip_check(scorer, rgb: np.ndarray, clip_cfg: dict[str, Any]) -> dict[str, f
     """The optional CLIP/SigLIP filter: raises DropUnit('image_rejected_by_clip') below the margin."""
     pos, neg = [str(x) for x in clip_cfg["positive"]], [str(x) for x in clip_cfg["negative"]]
     p = scorer.scores([rgb], pos + neg)[0]
-    margin = float(p[: len(pos)].max() - p[len(pos):].max())
+    margin = float(p[: len(pos)].max() - p[len(pos) :].max())
     if margin <= clip_cfg["min_margin"]:
-        best = neg[int(np.argmax(p[len(pos):]))]
-        raise DropUnit("image_rejected_by_clip", f"margin {margin:.3f} <= {clip_cfg['min_margin']} (best negative: {best!r})")
+        best = neg[int(np.argmax(p[len(pos) :]))]
+        raise DropUnit(
+            "image_rejected_by_clip", f"margin {margin:.3f} <= {clip_cfg['min_margin']} (best negative: {best!r})"
+        )
     return {"clip_margin": round(margin, 4)}

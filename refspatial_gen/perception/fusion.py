@@ -52,8 +52,9 @@ class FusedObject:
     observations: list[Observation] = field(default_factory=list)
 
 
-def lift(mask: np.ndarray, depth: np.ndarray, cam: Camera, voxel: float, max_points: int = MAX_POINTS
-         ) -> tuple[np.ndarray, np.ndarray]:
+def lift(
+    mask: np.ndarray, depth: np.ndarray, cam: Camera, voxel: float, max_points: int = MAX_POINTS
+) -> tuple[np.ndarray, np.ndarray]:
     """(packed voxel codes, world points) of a mask's pixels with depth, cleaned as the module docstring
     says (at most `max_points` pixels, every k-th in row order, so a large mask costs what a small one does)."""
     import cv2
@@ -199,8 +200,11 @@ def box_of(points: np.ndarray, gravity_known: bool) -> Box3D:
     if gravity_known:
         z0, z1 = np.percentile(points[:, 2], [1, 99])
         (cx, cy), (w, h), ang = cv2.minAreaRect(points[:, :2].astype(np.float32))
-        return Box3D(np.array([cx, cy, (z0 + z1) / 2]), np.array([max(w, 1e-3), max(h, 1e-3), max(z1 - z0, 1e-3)]),
-                     rot_z(np.deg2rad(ang)))
+        return Box3D(
+            np.array([cx, cy, (z0 + z1) / 2]),
+            np.array([max(w, 1e-3), max(h, 1e-3), max(z1 - z0, 1e-3)]),
+            rot_z(np.deg2rad(ang)),
+        )
     c = points.mean(axis=0)
     _, _, vt = np.linalg.svd(points - c, full_matrices=False)
     R = vt.T
@@ -211,8 +215,9 @@ def box_of(points: np.ndarray, gravity_known: bool) -> Box3D:
     return Box3D(c + R @ ((lo + hi) / 2), np.maximum(hi - lo, 1e-3), R)
 
 
-def finish(objects: list[FusedObject], voxel: float, min_views: int, min_points: int,
-           gravity_known: bool) -> tuple[list[tuple[FusedObject, Box3D]], dict[str, int]]:
+def finish(
+    objects: list[FusedObject], voxel: float, min_views: int, min_points: int, gravity_known: bool
+) -> tuple[list[tuple[FusedObject, Box3D]], dict[str, int]]:
     """Kept objects with their boxes (ordered by label, then position) and drop counts by reason. Boxes are
     measured on the lifted points of the kept voxels (voxel centres would put every extent on the grid,
     so distances between objects would come in exact steps and tie with the scene graph's margins)."""

@@ -46,8 +46,9 @@ class GroundingDinoDetector:
             start = end
         return out
 
-    def detect(self, images: list[np.ndarray], prompts: list[str], labels: list[str], floor: float,
-               per_chunk: int = 40) -> list[list[Detection]]:
+    def detect(
+        self, images: list[np.ndarray], prompts: list[str], labels: list[str], floor: float, per_chunk: int = 40
+    ) -> list[list[Detection]]:
         """Raw candidates (score >= floor) per image; `labels[i]` names the detections of `prompts[i]`."""
         import torch
 
@@ -66,7 +67,12 @@ class GroundingDinoDetector:
                 score = per_name[b][np.arange(len(best)), best]
                 for q in np.nonzero(score >= floor)[0]:
                     cx, cy, w, h = boxes[b, q]
-                    box = (float((cx - w / 2) * W), float((cy - h / 2) * H), float((cx + w / 2) * W), float((cy + h / 2) * H))
+                    box = (
+                        float((cx - w / 2) * W),
+                        float((cy - h / 2) * H),
+                        float((cx + w / 2) * W),
+                        float((cy + h / 2) * H),
+                    )
                     results[b].append(Detection(box, float(score[q]), labels[offset + int(best[q])]))
             offset += len(spans)
         return results

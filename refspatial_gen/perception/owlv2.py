@@ -34,16 +34,21 @@ class Owlv2Detector:
             n = int(self.model.config.text_config.max_position_embeddings)
             embs = []
             for i in range(0, len(prompts), 256):
-                enc = tok(prompts[i:i + 256], padding="max_length", max_length=n, truncation=True, return_tensors="pt")
+                enc = tok(
+                    prompts[i : i + 256], padding="max_length", max_length=n, truncation=True, return_tensors="pt"
+                )
                 with torch.no_grad():
-                    out = self.base.get_text_features(input_ids=enc["input_ids"].to(self.rt.device),
-                                                             attention_mask=enc["attention_mask"].to(self.rt.device))
+                    out = self.base.get_text_features(
+                        input_ids=enc["input_ids"].to(self.rt.device),
+                        attention_mask=enc["attention_mask"].to(self.rt.device),
+                    )
                 embs.append(out.pooler_output if hasattr(out, "pooler_output") else out)
             self._text = {key: torch.cat(embs, 0)}  # one vocabulary per worker at a time
         return self._text[key]
 
-    def detect(self, images: list[np.ndarray], prompts: list[str], labels: list[str], floor: float,
-               per_chunk: int = 0) -> list[list[Detection]]:
+    def detect(
+        self, images: list[np.ndarray], prompts: list[str], labels: list[str], floor: float, per_chunk: int = 0
+    ) -> list[list[Detection]]:
         """Raw candidates (score >= floor) per image; `labels[i]` names the detections of `prompts[i]`."""
         import torch
 
@@ -66,8 +71,12 @@ class Owlv2Detector:
             dets = []
             for p in np.nonzero(score >= floor)[0]:
                 cx, cy, bw, bh = boxes[b, p]
-                box = (float((cx - bw / 2) * sx), float((cy - bh / 2) * sy), float((cx + bw / 2) * sx),
-                       float((cy + bh / 2) * sy))
+                box = (
+                    float((cx - bw / 2) * sx),
+                    float((cy - bh / 2) * sy),
+                    float((cx + bw / 2) * sx),
+                    float((cy + bh / 2) * sy),
+                )
                 dets.append(Detection(box, float(score[p]), labels[int(best[p])]))
             results.append(dets)
         return results

@@ -13,9 +13,10 @@ detections removed inside a kept photo are counted in `frame.meta["truth"]` as `
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import lru_cache
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -93,7 +94,7 @@ def perceive_photo(root: str | Path, cfg: dict[str, Any], iid: str) -> tuple[Ite
     except NeedsCompute:
         B = P.rt.batch_size
         block = []
-        for bid, bpath, _, _ in lst[(k // B) * B:(k // B + 1) * B]:
+        for bid, bpath, _, _ in lst[(k // B) * B : (k // B + 1) * B]:
             if bid == iid:
                 block.append(item)
             elif bid not in dups:
@@ -130,14 +131,18 @@ def _record(res: Perceived, P: Perceiver, drops: dict[str, int]) -> tuple[dict, 
     truth = {f"perception_{k}": v for k, v in res.drops.items()}
     for k, v in drops.items():
         truth[k] = truth.get(k, 0) + v
-    meta = {"models": P.model_meta(), "filter_scores": res.scores, "names_asked": len(res.names),
-            "detections": [{"label": d.label, "score": round(d.score, 4), "box": [round(x, 2) for x in d.box]}
-                           for d in res.detections]}
+    meta = {
+        "models": P.model_meta(),
+        "filter_scores": res.scores,
+        "names_asked": len(res.names),
+        "detections": [
+            {"label": d.label, "score": round(d.score, 4), "box": [round(x, 2) for x in d.box]} for d in res.detections
+        ],
+    }
     return truth, meta
 
 
-def load_photo(root: str | Path, iid: str, rng: np.random.Generator, cfg: dict[str, Any],
-               build_frame: Callable) -> Any:
+def load_photo(root: str | Path, iid: str, rng: np.random.Generator, cfg: dict[str, Any], build_frame: Callable) -> Any:
     """One unlabelled photo -> one Frame, through the image source's `build_frame` (or DropUnit); lifted
     objects outside their category's size range are removed there (sources/image/truthcheck.py)."""
     from refspatial_gen.perception import depth as dp

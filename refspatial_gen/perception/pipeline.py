@@ -15,9 +15,10 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -96,16 +97,20 @@ class Perceiver:
 
     def model_meta(self) -> dict[str, Any]:
         """What the output records about the models: folder names and content hashes (never paths)."""
-        return {r: {"model": ref.name.rstrip("/").split("/")[-1], "family": ref.family, "sha256": ref.digest[:16]}
-                for r, ref in sorted(self.refs.items())}
+        return {
+            r: {"model": ref.name.rstrip("/").split("/")[-1], "family": ref.family, "sha256": ref.digest[:16]}
+            for r, ref in sorted(self.refs.items())
+        }
 
     def _key(self, role: str, content: str, *settings: Any) -> str:
         rt = self.rt
-        return key_of(STAGE_VERSION, role, content, self.refs[role].digest, [rt.device, rt.threads, rt.batch_size],
-                      list(settings))
+        return key_of(
+            STAGE_VERSION, role, content, self.refs[role].digest, [rt.device, rt.threads, rt.batch_size], list(settings)
+        )
 
-    def cached(self, role: str, content: str, settings: list, compute: Callable[[], tuple[dict, dict]]
-               ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    def cached(
+        self, role: str, content: str, settings: list, compute: Callable[[], tuple[dict, dict]]
+    ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         """One cached model call outside the batched stages (captions of single objects)."""
         key = self._key(role, content, *settings)
         got = self.cache.get(role, key)
@@ -119,8 +124,15 @@ class Perceiver:
         return got
 
     # ------------------------------------------------------------------ cached stage runner
-    def _stage(self, role: str, items: list[Item], settings: Callable[[Item], list], group: Callable[[Item], Any],
-               compute: Callable[[list[Item]], list[tuple[dict, dict]]], may_compute: bool) -> list[tuple[dict, dict]]:
+    def _stage(
+        self,
+        role: str,
+        items: list[Item],
+        settings: Callable[[Item], list],
+        group: Callable[[Item], Any],
+        compute: Callable[[list[Item]], list[tuple[dict, dict]]],
+        may_compute: bool,
+    ) -> list[tuple[dict, dict]]:
         keys = [self._key(role, it.content, *settings(it)) for it in items]
         got: list[Any] = [self.cache.get(role, k) for k in keys]
         missing = [i for i, g in enumerate(got) if g is None]
@@ -133,7 +145,7 @@ class Perceiver:
             if not any(got[i] is None for i in members):
                 continue
             for s in range(0, len(members), self.rt.batch_size):
-                chunk = members[s:s + self.rt.batch_size]
+                chunk = members[s : s + self.rt.batch_size]
                 t0 = time.perf_counter()
                 outs = compute([items[i] for i in chunk])
                 self.seconds[role] = self.seconds.get(role, 0.0) + time.perf_counter() - t0
@@ -145,8 +157,9 @@ class Perceiver:
         return got
 
     # ------------------------------------------------------------------ the stages
-    def run(self, items: list[Item], *, may_compute: bool = True, filters: bool = True,
-            depth: bool = True) -> list[Perceived | DropUnit]:
+    def run(
+        self, items: list[Item], *, may_compute: bool = True, filters: bool = True, depth: bool = True
+    ) -> list[Perceived | DropUnit]:
         """Every stage for every item; an item that fails a filter or has no detection gets its DropUnit."""
         out: list[Perceived | DropUnit | None] = [None] * len(items)
         scores: list[dict[str, float]] = [{} for _ in items]
@@ -168,8 +181,15 @@ class Perceiver:
         for i in live:
             kept, drops = dets[i]
             m = masks.get(i)
-            out[i] = Perceived(kept, None if m is None else m[0], None if m is None else m[1], depths.get(i),
-                               scores[i], drops, names[i])
+            out[i] = Perceived(
+                kept,
+                None if m is None else m[0],
+                None if m is None else m[1],
+                depths.get(i),
+                scores[i],
+                drops,
+                names[i],
+            )
         return out  # type: ignore[return-value]
 
     def _clip_filter(self, items, live, out, scores, may_compute) -> list[int]:
@@ -184,7 +204,7 @@ class Perceiver:
         keep = []
         for i, (arr, _) in zip(live, got):
             p = arr["p"].astype(np.float64)
-            margin = float(p[: len(c["positive"])].max() - p[len(c["positive"]):].max())
+            margin = float(p[: len(c["positive"])].max() - p[len(c["positive"]) :].max())
             scores[i]["clip_margin"] = round(margin, 4)
             if margin <= c["min_margin"]:
                 out[i] = DropUnit("image_rejected_by_clip", f"{items[i].iid}: margin {margin:.3f} <= {c['min_margin']}")
@@ -226,28 +246,51 @@ class Perceiver:
             raw = self.model("detector").detect([it.rgb for it in batch], prompts_of(nm), nm, self.floor, det["chunk"])
             res = []
             for dets in raw:
-                res.append(({"boxes": np.array([d.box for d in dets], np.float32).reshape(-1, 4),
-                             "scores": np.array([d.score for d in dets], np.float32),
-                             "labels": np.array([nm.index(d.label) for d in dets], np.int32)}, {}))
+                res.append(
+                    (
+                        {
+                            "boxes": np.array([d.box for d in dets], np.float32).reshape(-1, 4),
+                            "scores": np.array([d.score for d in dets], np.float32),
+                            "labels": np.array([nm.index(d.label) for d in dets], np.int32),
+                        },
+                        {},
+                    )
+                )
             return res
 
-        got = self._stage("detector", [items[i] for i in live],
-                          lambda it: [prompts_of(names[idx[id(it)]]), round(self.floor, 6), det["chunk"]],
-                          lambda it: (tuple(names[idx[id(it)]]), it.rgb.shape[:2] if by_size else None),
-                          compute, may_compute)
+        got = self._stage(
+            "detector",
+            [items[i] for i in live],
+            lambda it: [prompts_of(names[idx[id(it)]]), round(self.floor, 6), det["chunk"]],
+            lambda it: (tuple(names[idx[id(it)]]), it.rgb.shape[:2] if by_size else None),
+            compute,
+            may_compute,
+        )
         res = {}
         for i, (arr, _) in zip(live, got):
-            raw = [Detection(tuple(float(x) for x in b), float(s), names[i][int(lab)])
-                   for b, s, lab in zip(arr["boxes"], arr["scores"], arr["labels"])]
+            raw = [
+                Detection(tuple(float(x) for x in b), float(s), names[i][int(lab)])
+                for b, s, lab in zip(arr["boxes"], arr["scores"], arr["labels"])
+            ]
             H, W = items[i].rgb.shape[:2]
-            kept, drops = select(raw, W, H, threshold=det["threshold"], thresholds=det.get("thresholds"),
-                                 nms_iou=det["nms_iou"], duplicate_iou=det["duplicate_iou"],
-                                 max_detections=det["max_detections"], min_box_fraction=det["min_box_fraction"],
-                                 max_box_fraction=det["max_box_fraction"])
+            kept, drops = select(
+                raw,
+                W,
+                H,
+                threshold=det["threshold"],
+                thresholds=det.get("thresholds"),
+                nms_iou=det["nms_iou"],
+                duplicate_iou=det["duplicate_iou"],
+                max_detections=det["max_detections"],
+                min_box_fraction=det["min_box_fraction"],
+                max_box_fraction=det["max_box_fraction"],
+            )
             res[i] = (kept, drops)
             if not kept:
-                out[i] = DropUnit("no_detections", f"{items[i].iid}: no box above its threshold "
-                                                   f"({len(raw)} candidates; dropped: {drops})")
+                out[i] = DropUnit(
+                    "no_detections",
+                    f"{items[i].iid}: no box above its threshold ({len(raw)} candidates; dropped: {drops})",
+                )
         return res
 
     def _segment(self, items, live, dets, may_compute) -> dict[int, tuple[list[np.ndarray], list[float]]]:
@@ -258,13 +301,29 @@ class Perceiver:
             return [tuple(round(x, 2) for x in d.box) for d in dets[idx[id(it)]][0]]
 
         def compute(batch):
-            res = self.model("segmenter").segment([it.rgb for it in batch], [boxes_of(it) for it in batch],
-                                                  seg["multimask"])
-            return [({"masks": np.packbits(np.stack(m).astype(bool), axis=-1), "scores": np.array(s, np.float32),
-                      "shape": np.array(np.stack(m).shape, np.int64)}, {}) for m, s in res]
+            res = self.model("segmenter").segment(
+                [it.rgb for it in batch], [boxes_of(it) for it in batch], seg["multimask"]
+            )
+            return [
+                (
+                    {
+                        "masks": np.packbits(np.stack(m).astype(bool), axis=-1),
+                        "scores": np.array(s, np.float32),
+                        "shape": np.array(np.stack(m).shape, np.int64),
+                    },
+                    {},
+                )
+                for m, s in res
+            ]
 
-        got = self._stage("segmenter", [items[i] for i in live], lambda it: [boxes_of(it), seg["multimask"]],
-                          lambda it: 0, compute, may_compute)
+        got = self._stage(
+            "segmenter",
+            [items[i] for i in live],
+            lambda it: [boxes_of(it), seg["multimask"]],
+            lambda it: 0,
+            compute,
+            may_compute,
+        )
         out = {}
         for i, (arr, _) in zip(live, got):
             n, H, W = (int(x) for x in arr["shape"])
@@ -277,12 +336,25 @@ class Perceiver:
 
         def compute(batch):
             preds = self.model("depth").predict([it.rgb for it in batch])
-            return [({"depth": p.depth.astype(np.float32),
-                      "focal": np.array([np.nan if p.focal is None else p.focal], np.float64)},
-                     {"per_focal": bool(p.per_focal)}) for p in preds]
+            return [
+                (
+                    {
+                        "depth": p.depth.astype(np.float32),
+                        "focal": np.array([np.nan if p.focal is None else p.focal], np.float64),
+                    },
+                    {"per_focal": bool(p.per_focal)},
+                )
+                for p in preds
+            ]
 
-        got = self._stage("depth", [items[i] for i in live], lambda it: [],
-                          lambda it: it.rgb.shape[:2] if by_size else 0, compute, may_compute)
+        got = self._stage(
+            "depth",
+            [items[i] for i in live],
+            lambda it: [],
+            lambda it: it.rgb.shape[:2] if by_size else 0,
+            compute,
+            may_compute,
+        )
         out = {}
         for i, (arr, meta) in zip(live, got):
             f = float(arr["focal"][0])

@@ -11,11 +11,19 @@ import importlib
 from typing import Any
 
 MODEL_TYPES: dict[str, str] = {
-    "grounding-dino": "grounding-dino", "mm-grounding-dino": "grounding-dino",
-    "owlv2": "owlv2", "owlvit": "owlv2",
-    "sam": "sam", "sam2": "sam2", "sam2_video": "sam2",
-    "depth_anything": "depth-anything", "depth_pro": "depth-pro", "zoedepth": "zoedepth",
-    "clip": "clip", "siglip": "siglip", "siglip2": "siglip",
+    "grounding-dino": "grounding-dino",
+    "mm-grounding-dino": "grounding-dino",
+    "owlv2": "owlv2",
+    "owlvit": "owlv2",
+    "sam": "sam",
+    "sam2": "sam2",
+    "sam2_video": "sam2",
+    "depth_anything": "depth-anything",
+    "depth_pro": "depth-pro",
+    "zoedepth": "zoedepth",
+    "clip": "clip",
+    "siglip": "siglip",
+    "siglip2": "siglip",
 }
 FAMILIES: dict[str, str] = {
     "grounding-dino": "refspatial_gen.perception.grounding_dino:GroundingDinoDetector",
@@ -30,8 +38,20 @@ FAMILIES: dict[str, str] = {
     "vlm": "refspatial_gen.perception.vlm:VlmCaptioner",
 }
 # model types transformers maps to image-text-to-text that we accept as captioners
-VLM_TYPES = ("blip", "blip-2", "florence2", "idefics3", "smolvlm", "llava", "paligemma", "qwen2_vl", "qwen2_5_vl",
-             "git", "instructblip", "llava_onevision")
+VLM_TYPES = (
+    "blip",
+    "blip-2",
+    "florence2",
+    "idefics3",
+    "smolvlm",
+    "llava",
+    "paligemma",
+    "qwen2_vl",
+    "qwen2_5_vl",
+    "git",
+    "instructblip",
+    "llava_onevision",
+)
 
 
 def family_of(config: dict[str, Any]) -> str | None:

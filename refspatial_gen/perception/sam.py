@@ -31,8 +31,9 @@ class SamSegmenter:
         self.rt = rt
         self.processor, self.model = from_folder(path, rt, "AutoModel")
 
-    def segment(self, images: list[np.ndarray], boxes: list[list[tuple[float, float, float, float]]],
-                multimask: bool = True) -> list[tuple[list[np.ndarray], list[float]]]:
+    def segment(
+        self, images: list[np.ndarray], boxes: list[list[tuple[float, float, float, float]]], multimask: bool = True
+    ) -> list[tuple[list[np.ndarray], list[float]]]:
         """Per image: one bool HxW mask and its predicted IoU per box."""
         import torch
 
@@ -46,14 +47,23 @@ class SamSegmenter:
             masks: list[np.ndarray] = []
             scores: list[float] = []
             for i in range(0, len(boxes[b]), BOXES_PER_CALL):
-                bx = torch.tensor([[[x0 * rw / W, y0 * rh / H, x1 * rw / W, y1 * rh / H]
-                                    for x0, y0, x1, y1 in boxes[b][i:i + BOXES_PER_CALL]]], dtype=torch.float32)
+                bx = torch.tensor(
+                    [
+                        [
+                            [x0 * rw / W, y0 * rh / H, x1 * rw / W, y1 * rh / H]
+                            for x0, y0, x1, y1 in boxes[b][i : i + BOXES_PER_CALL]
+                        ]
+                    ],
+                    dtype=torch.float32,
+                )
                 with torch.no_grad():
-                    res = self.model(image_embeddings=emb[b:b + 1], input_boxes=bx.to(self.rt.device),
-                                     multimask_output=multimask)
+                    res = self.model(
+                        image_embeddings=emb[b : b + 1], input_boxes=bx.to(self.rt.device), multimask_output=multimask
+                    )
                 m, s = best_masks(res.pred_masks[0].float(), res.iou_scores[0].float())
                 full = self.processor.image_processor.post_process_masks(
-                    m[None].cpu(), enc["original_sizes"][b:b + 1], enc["reshaped_input_sizes"][b:b + 1])[0]
+                    m[None].cpu(), enc["original_sizes"][b : b + 1], enc["reshaped_input_sizes"][b : b + 1]
+                )[0]
                 masks += [np.asarray(x[0], bool) for x in full.numpy()]
                 scores += [float(v) for v in s.cpu().numpy()]
             out.append((masks, scores))

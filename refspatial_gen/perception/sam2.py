@@ -28,9 +28,12 @@ def preprocessing(path: str | Path) -> dict:
     p = Path(path) / "preprocessor_config.json"
     d = json.loads(p.read_text(encoding="utf-8")) if p.is_file() else {}
     size = d.get("size") or {"height": 1024, "width": 1024}
-    return {"size": (int(size.get("height", 1024)), int(size.get("width", 1024))),
-            "mean": tuple(d.get("image_mean") or IMAGENET_MEAN), "std": tuple(d.get("image_std") or IMAGENET_STD),
-            "rescale": float(d.get("rescale_factor") or 1 / 255)}
+    return {
+        "size": (int(size.get("height", 1024)), int(size.get("width", 1024))),
+        "mean": tuple(d.get("image_mean") or IMAGENET_MEAN),
+        "std": tuple(d.get("image_std") or IMAGENET_STD),
+        "rescale": float(d.get("rescale_factor") or 1 / 255),
+    }
 
 
 def pixel_values(images: list[np.ndarray], pre: dict) -> np.ndarray:
@@ -54,8 +57,9 @@ class Sam2Segmenter:
         self.pre = preprocessing(path)
         _, self.model = from_folder(path, rt, "AutoModel", None)
 
-    def segment(self, images: list[np.ndarray], boxes: list[list[tuple[float, float, float, float]]],
-                multimask: bool = True) -> list[tuple[list[np.ndarray], list[float]]]:
+    def segment(
+        self, images: list[np.ndarray], boxes: list[list[tuple[float, float, float, float]]], multimask: bool = True
+    ) -> list[tuple[list[np.ndarray], list[float]]]:
         """Per image: one bool HxW mask and its predicted IoU per box."""
         import torch
 
@@ -69,11 +73,21 @@ class Sam2Segmenter:
             masks: list[np.ndarray] = []
             scores: list[float] = []
             for i in range(0, len(boxes[b]), BOXES_PER_CALL):
-                bx = torch.tensor([[[x0 * sw / W, y0 * sh / H, x1 * sw / W, y1 * sh / H]
-                                    for x0, y0, x1, y1 in boxes[b][i:i + BOXES_PER_CALL]]], dtype=torch.float32)
+                bx = torch.tensor(
+                    [
+                        [
+                            [x0 * sw / W, y0 * sh / H, x1 * sw / W, y1 * sh / H]
+                            for x0, y0, x1, y1 in boxes[b][i : i + BOXES_PER_CALL]
+                        ]
+                    ],
+                    dtype=torch.float32,
+                )
                 with torch.no_grad():
-                    res = self.model(image_embeddings=[e[b:b + 1] for e in emb], input_boxes=bx.to(self.rt.device),
-                                     multimask_output=multimask)
+                    res = self.model(
+                        image_embeddings=[e[b : b + 1] for e in emb],
+                        input_boxes=bx.to(self.rt.device),
+                        multimask_output=multimask,
+                    )
                 m, s = best_masks(res.pred_masks[0].float(), res.iou_scores[0].float())
                 full = torch.nn.functional.interpolate(m.cpu(), size=(H, W), mode="bilinear", align_corners=False)
                 masks += [np.asarray(x[0] > 0.0) for x in full.numpy()]

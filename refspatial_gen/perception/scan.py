@@ -38,28 +38,39 @@ def key_views(all_views: list[str], seq: str, stride: int, max_frames: int) -> l
     return views
 
 
-def fused_boxes(reader_cls: type, root: Path, seq: str, view_id: str, posed: bool,
-                config: dict[str, Any]) -> tuple[list, dict[str, Any]]:
+def fused_boxes(
+    reader_cls: type, root: Path, seq: str, view_id: str, posed: bool, config: dict[str, Any]
+) -> tuple[list, dict[str, Any]]:
     """ScanBoxes (trajectory world frame) of the objects perception finds in the view's sequence, and a
     record for the view's meta (models, key frames, what fusion dropped)."""
     base = {k: v for k, v in config.items() if k != "perception"}
     group = None if posed else view_id
-    boxes, note = _fused(reader_cls, str(Path(root).resolve()), seq, group,
-                         json.dumps(base, sort_keys=True, default=str), json.dumps(config["perception"], sort_keys=True))
+    boxes, note = _fused(
+        reader_cls,
+        str(Path(root).resolve()),
+        seq,
+        group,
+        json.dumps(base, sort_keys=True, default=str),
+        json.dumps(config["perception"], sort_keys=True),
+    )
     return list(boxes), {"perception": json.loads(note)}
 
 
 @lru_cache(maxsize=8)
-def _fused(reader_cls: type, root: str, seq: str, single: str | None, base_json: str, section_json: str
-           ) -> tuple[tuple, str]:
+def _fused(
+    reader_cls: type, root: str, seq: str, single: str | None, base_json: str, section_json: str
+) -> tuple[tuple, str]:
     from refspatial_gen.sources.scan.view import ScanBox
 
     reader = reader_cls()
     base = json.loads(base_json)
     P = get_perceiver(json.loads(section_json))
     fz = P.cfg["fusion"]
-    vids = [single] if single else key_views(reader.views(Path(root), base), seq, int(base.get("keyframe_stride") or 1),
-                                              fz["max_frames"])
+    vids = (
+        [single]
+        if single
+        else key_views(reader.views(Path(root), base), seq, int(base.get("keyframe_stride") or 1), fz["max_frames"])
+    )
     views = []
     for vid in vids:
         try:
@@ -71,7 +82,7 @@ def _fused(reader_cls: type, root: str, seq: str, single: str | None, base_json:
     items = [Item(v.view_id, array_hash(v.rgb), v.rgb) for v in views]
     results = []
     for s in range(0, len(items), P.rt.batch_size):
-        results += P.run(items[s:s + P.rt.batch_size], filters=False, depth=False)
+        results += P.run(items[s : s + P.rt.batch_size], filters=False, depth=False)
     obs = []
     for f, (v, r) in enumerate(zip(views, results)):
         if isinstance(r, DropUnit) or v.depth is None:
@@ -82,8 +93,9 @@ def _fused(reader_cls: type, root: str, seq: str, single: str | None, base_json:
             if len(codes):
                 obs.append(fusion.Observation(f, d.label, d.score, codes, m, d.box, pts))
     known = bool(views[0].camera.gravity_known)
-    objs, drops = fusion.finish(fusion.associate(obs, fz["voxel"], fz["match_overlap"]), fz["voxel"],
-                                fz["min_views"], fz["min_points"], known)
+    objs, drops = fusion.finish(
+        fusion.associate(obs, fz["voxel"], fz["match_overlap"]), fz["voxel"], fz["min_views"], fz["min_points"], known
+    )
     T = np.array(views[0].meta.get("world_leveling") or np.eye(4), float)
     Ti = np.linalg.inv(T)
     out = []
@@ -91,13 +103,24 @@ def _fused(reader_cls: type, root: str, seq: str, single: str | None, base_json:
         raw = Box3D(Ti[:3, :3] @ box.center + Ti[:3, 3], box.size, Ti[:3, :3] @ box.rotation)
         rgbs = [views[o.frame].rgb for o in obj.observations]
         attrs = attributes_from_views(rgbs, [o.mask for o in obj.observations]) if P.cfg["captions"]["colour"] else {}
-        prov = {"annotation": "perception", "perception": {
-            "views": sorted({views[f].view_id for f in obj.frames}), "detections": len(obj.observations),
-            "score": round(float(max(obj.scores)), 4), "voxels": len(obj.voxels)}}
+        prov = {
+            "annotation": "perception",
+            "perception": {
+                "views": sorted({views[f].view_id for f in obj.frames}),
+                "detections": len(obj.observations),
+                "score": round(float(max(obj.scores)), 4),
+                "voxels": len(obj.voxels),
+            },
+        }
         out.append(ScanBox(k + 1, obj.label, raw, None, None, None, attrs, prov))
-    note = {"models": P.model_meta(), "key_frames": [v.view_id for v in views], "detections": len(obs),
-            "objects": len(out), "fusion_drops": drops,
-            "frames_without_detections": sum(isinstance(r, DropUnit) for r in results)}
+    note = {
+        "models": P.model_meta(),
+        "key_frames": [v.view_id for v in views],
+        "detections": len(obs),
+        "objects": len(out),
+        "fusion_drops": drops,
+        "frames_without_detections": sum(isinstance(r, DropUnit) for r in results),
+    }
     return tuple(out), json.dumps(note, sort_keys=True)
 
 

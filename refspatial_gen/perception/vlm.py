@@ -37,10 +37,13 @@ class VlmCaptioner:
             with torch.no_grad():
                 ids = self.model.generate(**enc, max_new_tokens=max_new_tokens, do_sample=False)
             n_in = enc["input_ids"].shape[-1] if "input_ids" in enc else 0
-            new = ids[:, n_in:] if (not self.model.config.is_encoder_decoder and ids.shape[-1] > n_in
-                                    and self.chat) else ids
+            new = (
+                ids[:, n_in:]
+                if (not self.model.config.is_encoder_decoder and ids.shape[-1] > n_in and self.chat)
+                else ids
+            )
             text = self.processor.batch_decode(new, skip_special_tokens=True)[0].strip()
             if text.lower().startswith(prompt.lower()):
-                text = text[len(prompt):].strip()
+                text = text[len(prompt) :].strip()
             out.append(" ".join(text.split()))
         return out

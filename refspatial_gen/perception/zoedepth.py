@@ -34,8 +34,9 @@ class ZoeDepthMetric:
         for b, img in enumerate(images):
             H, W = img.shape[:2]
             ph, pw = (int(np.sqrt(H / 2) * 3), int(np.sqrt(W / 2) * 3)) if self.padded else (0, 0)
-            d = torch.nn.functional.interpolate(pred[b:b + 1, None], size=(H + 2 * ph, W + 2 * pw), mode="bicubic",
-                                                align_corners=False)[0, 0]
-            d = d[ph:ph + H, pw:pw + W]
+            d = torch.nn.functional.interpolate(
+                pred[b : b + 1, None], size=(H + 2 * ph, W + 2 * pw), mode="bicubic", align_corners=False
+            )[0, 0]
+            d = d[ph : ph + H, pw : pw + W]
             out.append(DepthPrediction(d.numpy().astype(np.float32), False, None))
         return out

@@ -21,8 +21,9 @@ def bench_rewrite(work: Path, scenes: int = 2, recipe: Path | None = None) -> di
     root = Path(__file__).resolve().parents[2]
     recipe = recipe or root / "recipes" / "default.yaml"
     src = work / "rewrite-src"
-    run_plan(load_recipe(recipe, scenes=scenes), RecipeRef(str(recipe), None, scenes, None), src, workers=1,
-             progress=False)
+    run_plan(
+        load_recipe(recipe, scenes=scenes), RecipeRef(str(recipe), None, scenes, None), src, workers=1, progress=False
+    )
     cfg = load_rewrite_file(root / "recipes" / "rewrite" / "local.yaml")
     with llama_local.llama_server(work / "llama.log") as url:
         from dataclasses import replace
@@ -33,6 +34,11 @@ def bench_rewrite(work: Path, scenes: int = 2, recipe: Path | None = None) -> di
         dt = time.perf_counter() - t
     c = res["counts"]
     n = sum(c.values())
-    return {"model": cfg.model, "pairs_sent": n, "seconds": round(dt, 1),
-            "rewrites_per_s": round(n / dt, 3) if dt > 0 else 0.0,
-            "accepted_share": round(accepted_share(c), 3), "outcomes": c}
+    return {
+        "model": cfg.model,
+        "pairs_sent": n,
+        "seconds": round(dt, 1),
+        "rewrites_per_s": round(n / dt, 3) if dt > 0 else 0.0,
+        "accepted_share": round(accepted_share(c), 3),
+        "outcomes": c,
+    }

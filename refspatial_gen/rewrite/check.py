@@ -15,9 +15,28 @@ from dataclasses import dataclass
 
 from refspatial_gen.rewrite import rules
 
-REASONS = ("server_error", "bad_json", "answer_changed", "empty", "too_long", "too_short", "not_one_line",
-           "format_text", "phrase_missing", "phrase_repeated", "order_changed", "extra_object", "word_missing", "relation_changed",
-           "perspective_changed", "number_changed", "leaked_answer", "question_form", "unchanged", "no_suffix")
+REASONS = (
+    "server_error",
+    "bad_json",
+    "answer_changed",
+    "empty",
+    "too_long",
+    "too_short",
+    "not_one_line",
+    "format_text",
+    "phrase_missing",
+    "phrase_repeated",
+    "order_changed",
+    "extra_object",
+    "word_missing",
+    "relation_changed",
+    "perspective_changed",
+    "number_changed",
+    "leaked_answer",
+    "question_form",
+    "unchanged",
+    "no_suffix",
+)
 
 _ENUM = re.compile(r"(?<![\d.])\d\.(?=\s)")  # "1. left of the cup 2. ..." enumeration markers
 _FORMAT = re.compile(r"\(\s*[A-H]\s*\)|\[\s*\(|tuple|normali[sz]ed coordinates", re.IGNORECASE)
@@ -39,8 +58,16 @@ def question_form(answer_struct: dict) -> str:
     return "number" if kind == "number" else "point"
 
 
-def body_reason(original: str, new: str, phrases: tuple[str, ...], fwords: tuple[str, ...],
-                vocab: frozenset[str], answer: str, limits: Limits, form: str | None = None) -> str | None:
+def body_reason(
+    original: str,
+    new: str,
+    phrases: tuple[str, ...],
+    fwords: tuple[str, ...],
+    vocab: frozenset[str],
+    answer: str,
+    limits: Limits,
+    form: str | None = None,
+) -> str | None:
     """Why `new` is not an acceptable rewrite of the question body `original` (None: acceptable). `form`
     (question_form): the rewrite must still ask that kind of question."""
     if not new.strip():
@@ -66,7 +93,8 @@ def body_reason(original: str, new: str, phrases: tuple[str, ...], fwords: tuple
     if rules.nouns_in(n_masked, vocab) - rules.nouns_in(o_masked, vocab) - set(w.lower() for w in fwords):
         return "extra_object"
     if rules.nouns_in(o_masked, frozenset(w.lower() for w in fwords)) - rules.nouns_in(
-            n_masked, frozenset(w.lower() for w in fwords)):
+        n_masked, frozenset(w.lower() for w in fwords)
+    ):
         return "word_missing"
     nw = set(rules.words(n_masked)) - set(rules.words(o_masked))
     if nw.intersection(rules.ANSWER_WORDS) or _answer_named(n_masked, o_masked, answer):
@@ -76,8 +104,9 @@ def body_reason(original: str, new: str, phrases: tuple[str, ...], fwords: tuple
     if rules.concepts(n_masked) != rules.concepts(o_masked):
         return "relation_changed"
     lo, ln = o_masked.lower(), n_masked.lower()
-    if any((p in lo) != (p in ln) for p in rules.PERSPECTIVES) or any(p in ln and p not in lo
-                                                                        for p in rules.OBJECT_FRAME):
+    if any((p in lo) != (p in ln) for p in rules.PERSPECTIVES) or any(
+        p in ln and p not in lo for p in rules.OBJECT_FRAME
+    ):
         return "perspective_changed"
     if form is not None and rules.asks_for(original, form) and not rules.asks_for(new, form):
         return "question_form"
@@ -107,8 +136,10 @@ def answer_matches(original: str, returned: str | None) -> bool:
         return True
     pa, pb = _POINTS.findall(a), _POINTS.findall(b)
     if pa:
-        return len(pa) == len(pb) and all(abs(float(x1) - float(x2)) < 1e-9 and abs(float(y1) - float(y2)) < 1e-9
-                                          for (x1, y1), (x2, y2) in zip(pa, pb))
+        return len(pa) == len(pb) and all(
+            abs(float(x1) - float(x2)) < 1e-9 and abs(float(y1) - float(y2)) < 1e-9
+            for (x1, y1), (x2, y2) in zip(pa, pb)
+        )
     la, lb = re.match(r"^\(?([a-h])\)", a), re.match(r"^\(?([a-h])\)?(?:\s|$|\.)", b)
     if la:
         return bool(lb) and la.group(1) == lb.group(1)

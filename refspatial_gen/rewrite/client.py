@@ -17,8 +17,8 @@ import socket
 import time
 import urllib.error
 import urllib.request
-from typing import Any, Callable
-
+from collections.abc import Callable
+from typing import Any
 
 
 def reply_schema(ask_answer: bool) -> dict[str, Any]:
@@ -53,8 +53,17 @@ def response_format(mode: str, schema: dict[str, Any]) -> dict[str, Any] | None:
 class ChatClient:
     """POSTs chat requests to `base_url` (".../v1"); thread-safe (no shared connection state)."""
 
-    def __init__(self, base_url: str, *, api_key: str | None = None, timeout: float = 60.0, retries: int = 3,
-                 backoff: float = 0.5, backoff_max: float = 8.0, sleep: Callable[[float], None] = time.sleep) -> None:
+    def __init__(
+        self,
+        base_url: str,
+        *,
+        api_key: str | None = None,
+        timeout: float = 60.0,
+        retries: int = 3,
+        backoff: float = 0.5,
+        backoff_max: float = 8.0,
+        sleep: Callable[[float], None] = time.sleep,
+    ) -> None:
         self.url = base_url.rstrip("/") + "/chat/completions"
         self.api_key, self.timeout, self.retries = api_key, timeout, retries
         self.backoff, self.backoff_max, self.sleep = backoff, backoff_max, sleep
@@ -92,13 +101,16 @@ class ChatClient:
             text = _read(e)
             low = text.lower().replace(" ", "_")
             # some servers answer an unknown response_format with 400/422, llama-cpp-python with 500
-            if mode != "none" and e.code in (400, 422, 500, 501) and ("response_format" in low or (
-                    e.code != 500 and ("json" in low or "schema" in low))):
+            if (
+                mode != "none"
+                and e.code in (400, 422, 500, 501)
+                and ("response_format" in low or (e.code != 500 and ("json" in low or "schema" in low)))
+            ):
                 raise FormatUnsupported(text[:200]) from None
             if e.code in (408, 409, 425, 429) or e.code >= 500:
                 raise ServerError(f"http_{e.code}", text[:200]) from None
             raise _Fatal(f"http_{e.code}", text[:200]) from None
-        except (TimeoutError, socket.timeout) as e:
+        except TimeoutError as e:
             raise ServerError("timeout", str(e)) from None
         except (ConnectionError, http.client.HTTPException, urllib.error.URLError, OSError) as e:
             if isinstance(getattr(e, "reason", None), (TimeoutError, socket.timeout)):
@@ -146,7 +158,7 @@ def _json_object(text: str) -> Any:
     i, j = text.find("{"), text.rfind("}")
     if 0 <= i < j:
         try:
-            return json.loads(text[i: j + 1])
+            return json.loads(text[i : j + 1])
         except ValueError:
             return None
     return None

@@ -25,7 +25,9 @@ FIELDS: dict[str, Field] = {
     "server": Field(str, default="http://127.0.0.1:8080/v1", doc="OpenAI-compatible base URL (.../v1)"),
     "model": Field(str, required=True, doc="model id sent to the server; part of every cache key"),
     "api_key_env": Field(str, default=None, doc="name of the environment variable holding an API key"),
-    "prompts": Field(str, default=None, doc="prompt file, relative to the recipe (default recipes/rewrite/prompts.yaml)"),
+    "prompts": Field(
+        str, default=None, doc="prompt file, relative to the recipe (default recipes/rewrite/prompts.yaml)"
+    ),
     "families": Field(list, default=None, doc="families to rewrite (default: all but point_depth)"),
     "share": Field(float, default=1.0, min=0.0, max=1.0, doc="share of eligible pairs sent (chosen by qa_id hash)"),
     "temperature": Field(float, default=0.2, min=0.0, max=2.0),
@@ -96,13 +98,24 @@ def load_rewrite_config(data: Any, file: str, lines: dict, path: tuple = ("rewri
         raise RecipeError(file, line_of(lines, path + ("families",)), "families must list family names")
     cache = str((base / sec["cache"]).resolve()) if sec["cache"] else None
     return RewriteConfig(
-        server=sec["server"], model=sec["model"], api_key_env=sec["api_key_env"], prompts=prompts,
-        families=None if fams is None else tuple(fams), share=sec["share"],
+        server=sec["server"],
+        model=sec["model"],
+        api_key_env=sec["api_key_env"],
+        prompts=prompts,
+        families=None if fams is None else tuple(fams),
+        share=sec["share"],
         sampling={"temperature": sec["temperature"], "top_p": sec["top_p"], "max_tokens": sec["max_tokens"]},
-        seed=sec["seed"], response_format=sec["response_format"], concurrency=sec["concurrency"],
-        timeout=sec["timeout"], retries=sec["retries"], backoff=sec["backoff"], backoff_max=sec["backoff_max"],
-        cache=cache, limits=Limits(sec["max_chars"], Limits.min_chars, sec["max_ratio"]),
-        source_files=(str(pfile),))
+        seed=sec["seed"],
+        response_format=sec["response_format"],
+        concurrency=sec["concurrency"],
+        timeout=sec["timeout"],
+        retries=sec["retries"],
+        backoff=sec["backoff"],
+        backoff_max=sec["backoff_max"],
+        cache=cache,
+        limits=Limits(sec["max_chars"], Limits.min_chars, sec["max_ratio"]),
+        source_files=(str(pfile),),
+    )
 
 
 def load_rewrite_file(path: str | Path) -> RewriteConfig | None:

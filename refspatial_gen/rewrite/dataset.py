@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import json
 from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from refspatial_gen.core.fsutil import atomic_write_bytes, sha256_file
 from refspatial_gen.core.serialize import dumps
@@ -38,8 +39,14 @@ def _done(out: Path, row: dict[str, Any], model: str) -> dict[str, Any] | None:
     return rec
 
 
-def rewrite_dir(src: str | Path, out: str | Path, cfg: RewriteConfig, cache_dir: str | Path | None = None,
-                rewriter: Rewriter | None = None, progress: Callable[[str, Counter], None] | None = None) -> dict:
+def rewrite_dir(
+    src: str | Path,
+    out: str | Path,
+    cfg: RewriteConfig,
+    cache_dir: str | Path | None = None,
+    rewriter: Rewriter | None = None,
+    progress: Callable[[str, Counter], None] | None = None,
+) -> dict:
     """Rewrite every shard of `src` into `out`; returns {"index", "stats", "counts"}."""
     from refspatial_gen.shards.index import read_index, write_index
 
@@ -57,8 +64,11 @@ def rewrite_dir(src: str | Path, out: str | Path, cfg: RewriteConfig, cache_dir:
         for row in index["shards"]:
             rec = _done(out, row, cfg.model)
             if rec is None:
-                rec = {**_rewrite_shard(src / row["name"], out / row["name"], rw), "source_sha256": row.get("sha256"),
-                       "model": cfg.model}
+                rec = {
+                    **_rewrite_shard(src / row["name"], out / row["name"], rw),
+                    "source_sha256": row.get("sha256"),
+                    "model": cfg.model,
+                }
                 atomic_write_bytes(out / PARTS / f"{row['name']}.json", dumps(rec))
             counts.update(rec["counts"])
             infos += [{**s, **({"group": row["group"]} if "group" in row else {})} for s in rec["shards"]]
@@ -90,9 +100,16 @@ def _rewrite_shard(path: Path, out_path: Path, rw: Rewriter) -> dict[str, Any]:
     samples = []
     for raw in raws:
         h = raw.header
-        samples.append(Sample(sample_id=h["sample_id"], frames=[], unit_key=h["unit_key"], meta=dict(h["meta"]),
-                              graphs=[SceneGraph.from_json(g) for g in raw.graphs_json()],
-                              qa=[QAPair.from_json(q) for q in raw.qa_json()]))
+        samples.append(
+            Sample(
+                sample_id=h["sample_id"],
+                frames=[],
+                unit_key=h["unit_key"],
+                meta=dict(h["meta"]),
+                graphs=[SceneGraph.from_json(g) for g in raw.graphs_json()],
+                qa=[QAPair.from_json(q) for q in raw.qa_json()],
+            )
+        )
     counts = rw.rewrite_samples(samples)
     part = _Part(out_path, CHUNK_SIZE)
     try:

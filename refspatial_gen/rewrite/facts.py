@@ -60,7 +60,7 @@ def split_suffix(question: str, answer_struct: dict[str, Any]) -> tuple[str, str
             if question.endswith(" " + ins):
                 return question[: -len(ins) - 1], ins
         for m in re.finditer(r"(?<=[.?!])\s+", question):
-            rest = question[m.end():]
+            rest = question[m.end() :]
             first = re.split(r"(?<=[.?!])\s+", rest, maxsplit=1)[0]
             if _INSTRUCTION_SENTENCE.search(first):
                 return question[: m.start()], rest
@@ -137,7 +137,16 @@ def qa_facts(qa: QAPair, graphs: list[SceneGraph]) -> Facts | None:
     phrases = [p for p in dict.fromkeys(prog + scene) if counts[p.lower()] > 0]
     from refspatial_gen.rewrite.check import question_form
 
-    return Facts(qa_id=qa.qa_id, family=qa.family, kind=str((qa.answer_struct or {}).get("kind")),
-                 form=question_form(qa.answer_struct), body=body,
-                 suffix=suffix, answer=qa.answer, phrases=tuple(phrases), words=tuple(fwords),
-                 relations=tuple(qa.relations), vocab=scene_vocab(graphs))
+    return Facts(
+        qa_id=qa.qa_id,
+        family=qa.family,
+        kind=str((qa.answer_struct or {}).get("kind")),
+        form=question_form(qa.answer_struct),
+        body=body,
+        suffix=suffix,
+        answer=qa.answer,
+        phrases=tuple(phrases),
+        words=tuple(fwords),
+        relations=tuple(qa.relations),
+        vocab=scene_vocab(graphs),
+    )

@@ -57,7 +57,10 @@ def language_stats(d: str | Path, categories: bool = False, top: int = 10) -> di
         t = sum(c.values())
         return {"questions": t, "distinct": len(c), "share": round(len(c) / t, 4) if t else 0.0}
 
-    return {**share(seen), "rewritten": rewritten, "masked": "phrases+categories" if categories else "phrases",
-            "by_family": {k: share(v) for k, v in sorted(fam.items())},
-            "most_repeated": [[c, w] for w, c in sorted(seen.items(), key=lambda kv: (-kv[1], kv[0]))[:top]]
-            if n else []}
+    return {
+        **share(seen),
+        "rewritten": rewritten,
+        "masked": "phrases+categories" if categories else "phrases",
+        "by_family": {k: share(v) for k, v in sorted(fam.items())},
+        "most_repeated": [[c, w] for w, c in sorted(seen.items(), key=lambda kv: (-kv[1], kv[0]))[:top]] if n else [],
+    }

@@ -13,12 +13,16 @@ import subprocess
 import sys
 import time
 import urllib.request
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator
 
-GGUF = Path(os.environ.get("REFSPATIAL_REWRITE_GGUF", Path.home() / ".cache" / "refspatial-gen" / "models"
-                           / "SmolLM2-135M-Instruct.Q4_1.gguf"))
+GGUF = Path(
+    os.environ.get(
+        "REFSPATIAL_REWRITE_GGUF",
+        Path.home() / ".cache" / "refspatial-gen" / "models" / "SmolLM2-135M-Instruct.Q4_1.gguf",
+    )
+)
 MODEL = "SmolLM2-135M-Instruct"
 
 
@@ -45,9 +49,27 @@ def llama_server(log: Path, threads: int = 2, start_timeout: float = 180.0) -> I
     (with the log's tail) when it does not come up."""
     port = _free_port()
     with open(log, "wb") as f:
-        proc = subprocess.Popen([sys.executable, "-m", "llama_cpp.server", "--model", str(GGUF), "--model_alias", MODEL,
-                                 "--host", "127.0.0.1", "--port", str(port), "--n_ctx", "2048", "--n_threads",
-                                 str(threads)], stdout=f, stderr=subprocess.STDOUT)
+        proc = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "llama_cpp.server",
+                "--model",
+                str(GGUF),
+                "--model_alias",
+                MODEL,
+                "--host",
+                "127.0.0.1",
+                "--port",
+                str(port),
+                "--n_ctx",
+                "2048",
+                "--n_threads",
+                str(threads),
+            ],
+            stdout=f,
+            stderr=subprocess.STDOUT,
+        )
     url = f"http://127.0.0.1:{port}/v1"
     try:
         deadline = time.time() + start_timeout

@@ -35,18 +35,33 @@ class Prompts:
         """System prompt, few-shot turns, then this pair's facts."""
         msgs = [{"role": "system", "content": self.system}]
         for ex in self.examples:
-            msgs.append({"role": "user", "content": self._user(ex["family"], ex["question"], ex["answer"],
-                                                               ex["phrases"], ex["words"], ex["relations"])})
+            msgs.append(
+                {
+                    "role": "user",
+                    "content": self._user(
+                        ex["family"], ex["question"], ex["answer"], ex["phrases"], ex["words"], ex["relations"]
+                    ),
+                }
+            )
             reply = {"question": ex["rewrite"], **({"answer": ex["answer"]} if self.ask_answer else {})}
             msgs.append({"role": "assistant", "content": json.dumps(reply)})
-        msgs.append({"role": "user", "content": self._user(f.family, f.body, f.answer, list(f.phrases), list(f.words),
-                                                           list(f.relations))})
+        msgs.append(
+            {
+                "role": "user",
+                "content": self._user(f.family, f.body, f.answer, list(f.phrases), list(f.words), list(f.relations)),
+            }
+        )
         return msgs
 
     def _user(self, family: str, question: str, answer: str, phrases: list, words: list, relations: list) -> str:
-        values = {"question": question, "answer": answer, "family": family,
-                  "phrases": "; ".join(f'"{p}"' for p in phrases) or "(none)",
-                  "words": ", ".join(words) or "(none)", "relations": ", ".join(relations) or "(none)"}
+        values = {
+            "question": question,
+            "answer": answer,
+            "family": family,
+            "phrases": "; ".join(f'"{p}"' for p in phrases) or "(none)",
+            "words": ", ".join(words) or "(none)",
+            "relations": ", ".join(relations) or "(none)",
+        }
         hint = self.hints.get(family, self.hints.get("default", ""))
         values["hint"] = hint.format(**values, hint="")
         return self.users.get(family, self.user).format(**values)
@@ -63,8 +78,9 @@ def _check_text(text: Any, file: str, line: int | None, where: str, errors: list
         return ""
     for n in names:
         if n not in PLACEHOLDERS:
-            errors.append(RecipeError(file, line, f"{where}: unknown placeholder {{{n}}} (known: "
-                                                  f"{', '.join(PLACEHOLDERS)})"))
+            errors.append(
+                RecipeError(file, line, f"{where}: unknown placeholder {{{n}}} (known: {', '.join(PLACEHOLDERS)})")
+            )
     return text
 
 

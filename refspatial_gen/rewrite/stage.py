@@ -22,8 +22,7 @@ from typing import Any
 from refspatial_gen.core.model import QAPair, Sample
 from refspatial_gen.rewrite.cache import ReplyCache
 from refspatial_gen.rewrite.check import answer_matches, assemble, body_reason
-from refspatial_gen.rewrite.client import (FORMATS, ChatClient, FormatUnsupported, ServerError, parse_reply,
-                                           reply_schema)
+from refspatial_gen.rewrite.client import FORMATS, ChatClient, FormatUnsupported, ServerError, parse_reply, reply_schema
 from refspatial_gen.rewrite.config import RewriteConfig
 from refspatial_gen.rewrite.facts import Facts, qa_facts
 
@@ -40,8 +39,14 @@ class Rewriter:
     def __init__(self, cfg: RewriteConfig, cache_dir: str | Path, client: ChatClient | None = None) -> None:
         self.cfg = cfg
         self.cache = ReplyCache(cache_dir)
-        self.client = client or ChatClient(cfg.base_url(), api_key=cfg.api_key(), timeout=cfg.timeout,
-                                           retries=cfg.retries, backoff=cfg.backoff, backoff_max=cfg.backoff_max)
+        self.client = client or ChatClient(
+            cfg.base_url(),
+            api_key=cfg.api_key(),
+            timeout=cfg.timeout,
+            retries=cfg.retries,
+            backoff=cfg.backoff,
+            backoff_max=cfg.backoff_max,
+        )
         self.modes = FORMATS if cfg.response_format == "auto" else (cfg.response_format,)
         self._mode = 0
         self._lock = threading.Lock()
@@ -55,12 +60,16 @@ class Rewriter:
     def selected(self, qa: QAPair) -> bool:
         if not self.cfg.wants(qa.family):
             return False
-        return self.cfg.share >= 1.0 or _unit_hash(f"share:{qa.qa_id}") < self.cfg.share * 2 ** 32
+        return self.cfg.share >= 1.0 or _unit_hash(f"share:{qa.qa_id}") < self.cfg.share * 2**32
 
     def request(self, f: Facts) -> dict[str, Any]:
         """The request body: everything that decides the reply (and so the cache key)."""
-        return {"model": self.cfg.model, "messages": self.cfg.prompts.messages(f), **self.cfg.sampling,
-                "seed": _unit_hash(f"{self.cfg.seed}:{f.qa_id}") & 0x7FFFFFFF}
+        return {
+            "model": self.cfg.model,
+            "messages": self.cfg.prompts.messages(f),
+            **self.cfg.sampling,
+            "seed": _unit_hash(f"{self.cfg.seed}:{f.qa_id}") & 0x7FFFFFFF,
+        }
 
     def reply(self, body: dict[str, Any]) -> str:
         """Cached reply, else the server's (then cached). Raises ServerError."""
@@ -128,10 +137,10 @@ class Rewriter:
         return counts
 
 
-def _record(s: Sample, qa: QAPair, f: Facts | None, reason: str | None, new_q: str | None,
-            cfg: RewriteConfig) -> None:
-    meta = s.meta.setdefault("rewrite", {"model": cfg.model, "accepted": 0, "pairs": {},
-                                         "limits": dataclasses.asdict(cfg.limits)})
+def _record(s: Sample, qa: QAPair, f: Facts | None, reason: str | None, new_q: str | None, cfg: RewriteConfig) -> None:
+    meta = s.meta.setdefault(
+        "rewrite", {"model": cfg.model, "accepted": 0, "pairs": {}, "limits": dataclasses.asdict(cfg.limits)}
+    )
     if reason is None and f is not None and new_q is not None:
         meta["pairs"][qa.qa_id] = {"original": qa.question, "suffix": f.suffix}
         meta["accepted"] += 1

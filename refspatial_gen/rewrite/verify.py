@@ -50,8 +50,13 @@ def _scene_words(graphs: list[SceneGraph]) -> tuple[list[str], frozenset[str], s
 
 
 def _filter_words(program: list[dict]) -> tuple[str, ...]:
-    return tuple(str(st["args"][k]) for st in program if st.get("op") == "filter"
-                 for k in ("category", "color") if isinstance((st.get("args") or {}).get(k), str))
+    return tuple(
+        str(st["args"][k])
+        for st in program
+        if st.get("op") == "filter"
+        for k in ("category", "color")
+        if isinstance((st.get("args") or {}).get(k), str)
+    )
 
 
 def verify_rewrites(sample: Sample) -> list[dict[str, Any]]:
@@ -61,8 +66,11 @@ def verify_rewrites(sample: Sample) -> list[dict[str, Any]]:
     if not pairs:
         return []
     lim = meta.get("limits") or {}
-    limits = Limits(int(lim.get("max_chars", Limits.max_chars)), int(lim.get("min_chars", Limits.min_chars)),
-                    float(lim.get("max_ratio", Limits.max_ratio)))
+    limits = Limits(
+        int(lim.get("max_chars", Limits.max_chars)),
+        int(lim.get("min_chars", Limits.min_chars)),
+        float(lim.get("max_ratio", Limits.max_ratio)),
+    )
     by_id = {q.qa_id: q for q in sample.qa}
     scene_phrases, vocab, _ = _scene_words(sample.graphs)
     out = []
@@ -89,8 +97,9 @@ def verify_rewrites(sample: Sample) -> list[dict[str, Any]]:
         # kept through the longer one) must be in the rewrite as often
         _, counts = rules.mask_phrases(o_body, tuple(scene_phrases))
         keep = tuple(p for p, n in counts.items() if n)
-        reason = body_reason(o_body, n_body, keep, _filter_words(qa.program), vocab, qa.answer, limits,
-                             question_form(qa.answer_struct))
+        reason = body_reason(
+            o_body, n_body, keep, _filter_words(qa.program), vocab, qa.answer, limits, question_form(qa.answer_struct)
+        )
         if reason is not None and reason != "unchanged":
             fail(qa_id, qa.template, f"rewrite: {reason} (original {original!r})")
     return out

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 from refspatial_gen.core.errors import DropUnit, InputError
 from refspatial_gen.core.model import Sample
+from refspatial_gen.core.serialize import as_stored
 from refspatial_gen.recipe import Recipe
 from refspatial_gen.run.plan import Unit, unit_rng
 from refspatial_gen.sources import get_source
@@ -43,6 +44,7 @@ def make_sample(recipe: Recipe, unit: Unit, timer: StageTimer, out_dir: str | No
             f.validate()
         except ValueError as e:
             raise DropUnit("invalid_frame", f"{f.frame_id}: {e}") from e
+    frames = [as_stored(f) for f in frames]  # graphs and QA on the numbers the shard keeps (verify reads them)
     t = timer.add("load", t)
     graphs = [build_graph(f, recipe.graph) for f in frames]
     t = timer.add("graph", t)

@@ -26,8 +26,8 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Iterable
 
 import numpy as np
 
@@ -37,12 +37,16 @@ from refspatial_gen.run.splits import keep_sample, sample_split, splits_of_sampl
 from refspatial_gen.shards.export_files import write_new
 from refspatial_gen.shards.format import RawSample
 
-SUFFIX = ("Your answer should be formatted as a list of tuples, i.e. [(x1, y1)], where each tuple contains the x and "
-          "y coordinates of a point satisfying the conditions above. The coordinates should be between 0 and 1, "
-          "indicating the normalized pixel locations of the points in the image.")
+SUFFIX = (
+    "Your answer should be formatted as a list of tuples, i.e. [(x1, y1)], where each tuple contains the x and "
+    "y coordinates of a point satisfying the conditions above. The coordinates should be between 0 and 1, "
+    "indicating the normalized pixel locations of the points in the image."
+)
 TASKS = {"points": ("Location", "location"), "region": ("Placement", "placement")}
 TASKS_FOLDERS = ("Location", "Placement", "Unseen")
-_LEAD = re.compile(r"^(?:please\s+)?(?:point\s+(?:out|to|at)|locate|find|show\s+me|identify|mark)\s+(?P<obj>.+?)[.?!]?$", re.I)
+_LEAD = re.compile(
+    r"^(?:please\s+)?(?:point\s+(?:out|to|at)|locate|find|show\s+me|identify|mark)\s+(?P<obj>.+?)[.?!]?$", re.I
+)
 _WHERE = re.compile(r"^where\s+is\s+(?P<obj>.+?)\?$", re.I)
 
 
@@ -96,8 +100,9 @@ def _png(arr: np.ndarray) -> bytes:
     return buf.tobytes()
 
 
-def export_refspatial_bench(raws: Iterable[RawSample], out: Path | str, *,
-                            splits: Iterable[str] | None = ("test",)) -> dict:
+def export_refspatial_bench(
+    raws: Iterable[RawSample], out: Path | str, *, splits: Iterable[str] | None = ("test",)
+) -> dict:
     """Write the three task folders; returns counts per task and how many prompts had no known format sentence."""
     out = Path(out)
     scene_map = splits_of_samples(raws)
@@ -120,13 +125,19 @@ def export_refspatial_bench(raws: Iterable[RawSample], out: Path | str, *,
                 continue
             v = frame_ids.index(qa["frame_ids"][0])
             if v not in cache:
-                cache[v] = (raw.rgb(v), raw.depth(v) if any(
-                    (q.get("answer_struct") or {}).get("kind") == "region" for q in raw.qa_json()) else None)
+                cache[v] = (
+                    raw.rgb(v),
+                    raw.depth(v)
+                    if any((q.get("answer_struct") or {}).get("kind") == "region" for q in raw.qa_json())
+                    else None,
+                )
             rgb, depth = cache[v]
             gold = build_gold(qa, metas[v], graphs.get(metas[v]["frame_id"]), depth)
             mask = RLE.from_json(gold.mask).decode()
             if not benchmark_hit(gold.points[0], mask):
-                raise ValueError(f"{qa['qa_id']}: the gold point {gold.points[0]} misses its own mask the benchmark's way")
+                raise ValueError(
+                    f"{qa['qa_id']}: the gold point {gold.points[0]} misses its own mask the benchmark's way"
+                )
             folder, category = ("Unseen", TASKS[kind][1]) if unseen else TASKS[kind]
             prompt, found = split_prompt(qa["question"])
             no_instruction += not found
@@ -136,9 +147,19 @@ def export_refspatial_bench(raws: Iterable[RawSample], out: Path | str, *,
             (d / "mask").mkdir(parents=True, exist_ok=True)
             write_new(d / "image" / f"{i}.png", _png(np.ascontiguousarray(rgb[..., ::-1])))
             write_new(d / "mask" / f"{i}.png", _png(mask.astype(np.uint8) * 255))
-            items[folder].append({"id": i, "object": object_of(prompt, qa), "prompt": prompt, "suffix": SUFFIX,
-                                  "rgb_path": f"image/{i}.png", "mask_path": f"mask/{i}.png", "category": category,
-                                  "step": int(qa["steps"]), "qa_id": qa["qa_id"]})
+            items[folder].append(
+                {
+                    "id": i,
+                    "object": object_of(prompt, qa),
+                    "prompt": prompt,
+                    "suffix": SUFFIX,
+                    "rgb_path": f"image/{i}.png",
+                    "mask_path": f"mask/{i}.png",
+                    "category": category,
+                    "step": int(qa["steps"]),
+                    "qa_id": qa["qa_id"],
+                }
+            )
     for folder, rows in items.items():
         if rows:
             write_new(out / folder / "question.json", json.dumps(rows, ensure_ascii=False, indent=1).encode())
@@ -184,5 +205,7 @@ def check_export(out: Path, raws: Iterable[RawSample]) -> list[str]:
                 problems.append(f"{where}: image is not the stored view of {qa['qa_id']}")
             elif mask is None or mask.dtype != np.uint8 or mask.shape != rgb.shape[:2] or not mask.any():
                 problems.append(f"{where}: mask is not a non-empty 8-bit single-channel image of the image's size")
-    problems += [f"{out / f}: item {r['id']} names QA pair {q!r}, which is not in the shards" for q, (f, r) in rows.items()]
+    problems += [
+        f"{out / f}: item {r['id']} names QA pair {q!r}, which is not in the shards" for q, (f, r) in rows.items()
+    ]
     return problems

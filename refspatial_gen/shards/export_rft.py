@@ -23,16 +23,24 @@ the shards, and `shards.export` writes the whole folder atomically.
 from __future__ import annotations
 
 import json
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Iterable
 
 from refspatial_gen.rewards.gold import build_gold, gold_text
 from refspatial_gen.run.splits import keep_sample, sample_split, splits_of_samples
-from refspatial_gen.shards.export_files import EXT, StemRegistry, check_image_refs, stored_image_hashes, view_name, write_new
+from refspatial_gen.shards.export_files import (
+    EXT,
+    StemRegistry,
+    check_image_refs,
+    stored_image_hashes,
+    view_name,
+    write_new,
+)
 from refspatial_gen.shards.format import RawSample
 
-REASONING_INSTRUCTION = ("Output the thinking process in <think> </think> and the final answer in "
-                         "<answer> </answer> tags.")
+REASONING_INSTRUCTION = (
+    "Output the thinking process in <think> </think> and the final answer in <answer> </answer> tags."
+)
 
 
 def rft_lines(raw: RawSample, names: list[str], split: str) -> list[dict]:
@@ -53,16 +61,29 @@ def rft_lines(raw: RawSample, names: list[str], split: str) -> list[dict]:
             depths[v] = raw.depth(v)
         gold = build_gold(qa, metas[v], graphs.get(metas[v]["frame_id"]), depths.get(v))
         content = qa["question"] + (" " + REASONING_INSTRUCTION if gold.reasoning else "")
-        out.append({
-            "id": qa["qa_id"], "sample_id": h["sample_id"], "split": split, "family": qa["family"],
-            "template": qa["template"], "steps": qa["steps"], "relations": qa["relations"],
-            "source": metas[v].get("source"), "images": [names[i] for i in vs], "image_size": qa["image_size"],
-            "prompt": [{"role": "user", "content": content}], "question": qa["question"], "answer": qa["answer"],
-            "solution": gold_text(qa), "key_steps": qa.get("key_steps") or [], "answer_struct": qa["answer_struct"],
-            "data_source": f"refspatial-gen/{qa['family']}",
-            "reward_model": {"style": "rule", "ground_truth": gold.dumps()},
-            "extra_info": {"qa_id": qa["qa_id"], "split": split, "family": qa["family"]},
-        })
+        out.append(
+            {
+                "id": qa["qa_id"],
+                "sample_id": h["sample_id"],
+                "split": split,
+                "family": qa["family"],
+                "template": qa["template"],
+                "steps": qa["steps"],
+                "relations": qa["relations"],
+                "source": metas[v].get("source"),
+                "images": [names[i] for i in vs],
+                "image_size": qa["image_size"],
+                "prompt": [{"role": "user", "content": content}],
+                "question": qa["question"],
+                "answer": qa["answer"],
+                "solution": gold_text(qa),
+                "key_steps": qa.get("key_steps") or [],
+                "answer_struct": qa["answer_struct"],
+                "data_source": f"refspatial-gen/{qa['family']}",
+                "reward_model": {"style": "rule", "ground_truth": gold.dumps()},
+                "extra_info": {"qa_id": qa["qa_id"], "split": split, "family": qa["family"]},
+            }
+        )
     return out
 
 
@@ -95,8 +116,12 @@ def export_rft(raws: Iterable[RawSample], out: Path | str, *, splits: Iterable[s
                 by_split[split] = by_split.get(split, 0) + 1
                 by_family[line["family"]] = by_family.get(line["family"], 0) + 1
             m += 1
-    return {"qa_pairs": n, "samples": m, "by_split": dict(sorted(by_split.items())),
-            "by_family": dict(sorted(by_family.items()))}
+    return {
+        "qa_pairs": n,
+        "samples": m,
+        "by_split": dict(sorted(by_split.items())),
+        "by_family": dict(sorted(by_family.items())),
+    }
 
 
 def check_export(out: Path, raws: Iterable[RawSample]) -> list[str]:

@@ -15,8 +15,8 @@ whole folder atomically.
 from __future__ import annotations
 
 import json
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Iterable
 
 from refspatial_gen.run.splits import keep_sample, sample_split, splits_of_samples
 from refspatial_gen.shards import export_refspatial
@@ -25,8 +25,9 @@ from refspatial_gen.shards.export_refspatial import check_roborefer_layout, expo
 from refspatial_gen.shards.format import RawSample
 
 
-def export_sft(raws: Iterable[RawSample], out: Path | str, *, splits: Iterable[str] | None = ("train",),
-               with_depth: bool = True) -> dict:
+def export_sft(
+    raws: Iterable[RawSample], out: Path | str, *, splits: Iterable[str] | None = ("train",), with_depth: bool = True
+) -> dict:
     """Write the layout; returns {"records": {family: n}, "qa_pairs", "reasoning_pairs", "samples", "by_split"}."""
     out = Path(out)
     (out / "image").mkdir(parents=True, exist_ok=True)
@@ -55,13 +56,20 @@ def export_sft(raws: Iterable[RawSample], out: Path | str, *, splits: Iterable[s
                 by_split[split] = by_split.get(split, 0) + len(rec["conversations"]) // 2
             by_family.setdefault(fam, []).extend(recs)
     for fam, recs in sorted(by_family.items()):
-        write_new(out / f"{safe_name(fam)}.json", json.dumps(recs, ensure_ascii=False, indent=1, sort_keys=True).encode())
+        write_new(
+            out / f"{safe_name(fam)}.json", json.dumps(recs, ensure_ascii=False, indent=1, sort_keys=True).encode()
+        )
     if by_family:
         errors = check_roborefer_layout(out)
         if errors:
             raise ValueError(f"{out}: the SFT export breaks {len(errors)} RoboRefer loader rule(s), first: {errors[0]}")
-    return {"records": {f: len(r) for f, r in sorted(by_family.items())}, "qa_pairs": n_qa, "reasoning_pairs": n_reason,
-            "samples": n_samples, "by_split": dict(sorted(by_split.items()))}
+    return {
+        "records": {f: len(r) for f, r in sorted(by_family.items())},
+        "qa_pairs": n_qa,
+        "reasoning_pairs": n_reason,
+        "samples": n_samples,
+        "by_split": dict(sorted(by_split.items())),
+    }
 
 
 def check_export(out: Path, raws: Iterable[RawSample]) -> list[str]:

@@ -15,8 +15,16 @@ from refspatial_gen.core.geometry import Box3D, rot_z
 from refspatial_gen.core.mask import RLE
 from refspatial_gen.core.model import Frame, ObjectInstance, SupportSurface
 
-COLOURS = {"red": (200, 40, 40), "green": (40, 160, 60), "blue": (40, 70, 200), "yellow": (220, 200, 40),
-           "white": (230, 230, 230), "black": (30, 30, 30), "orange": (235, 130, 30), "purple": (130, 60, 170)}
+COLOURS = {
+    "red": (200, 40, 40),
+    "green": (40, 160, 60),
+    "blue": (40, 70, 200),
+    "yellow": (220, 200, 40),
+    "white": (230, 230, 230),
+    "black": (30, 30, 30),
+    "orange": (235, 130, 30),
+    "purple": (130, 60, 170),
+}
 CATEGORIES = {  # name: (size ranges x, y, z in metres)
     "box": ((0.06, 0.14), (0.06, 0.14), (0.04, 0.12)),
     "book": ((0.14, 0.22), (0.10, 0.16), (0.02, 0.05)),
@@ -28,10 +36,14 @@ TABLE = Box3D(np.array([0.0, 0.0, 0.375]), np.array([1.2, 0.8, 0.75]), np.eye(3)
 
 
 def raycast_boxes(cam: Camera, boxes: list[Box3D]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per-pixel nearest hit of camera rays with solid boxes -> (depth z (H,W), index (H,W), -1 = none, normal (H,W,3))."""
+    """Per-pixel nearest hit of camera rays with solid boxes.
+
+    Returns (depth z (H,W), index (H,W) with -1 = none, normal (H,W,3))."""
     H, W = cam.height, cam.width
     vs, us = np.mgrid[0:H, 0:W]
-    d_cam = np.stack([(us + 0.5 - cam.cx) / cam.fx, (vs + 0.5 - cam.cy) / cam.fy, np.ones_like(us, float)], -1).reshape(-1, 3)
+    d_cam = np.stack([(us + 0.5 - cam.cx) / cam.fx, (vs + 0.5 - cam.cy) / cam.fy, np.ones_like(us, float)], -1).reshape(
+        -1, 3
+    )
     R, o = cam.world_from_cam[:3, :3], cam.world_from_cam[:3, 3]
     d_world = d_cam @ R.T
     best_t = np.full(d_world.shape[0], np.inf)
@@ -59,9 +71,15 @@ def raycast_boxes(cam: Camera, boxes: list[Box3D]) -> tuple[np.ndarray, np.ndarr
     return depth.reshape(H, W).astype(np.float32), best_i.reshape(H, W), best_n.reshape(H, W, 3)
 
 
-def toy_frame(rng: np.random.Generator, n_objects: int = 6, width: int = 320, height: int = 240,
-              frame_id: str = "toy", boxes: list[tuple[str, str, Box3D]] | None = None,
-              camera: Camera | None = None) -> Frame:
+def toy_frame(
+    rng: np.random.Generator,
+    n_objects: int = 6,
+    width: int = 320,
+    height: int = 240,
+    frame_id: str = "toy",
+    boxes: list[tuple[str, str, Box3D]] | None = None,
+    camera: Camera | None = None,
+) -> Frame:
     """A random (or given) set of boxes on a table seen from a downward-looking camera."""
     top = TABLE.top_z
     if boxes is None:
@@ -73,8 +91,11 @@ def toy_frame(rng: np.random.Generator, n_objects: int = 6, width: int = 320, he
             size = np.array([rng.uniform(*r) for r in CATEGORIES[cat]])
             c = np.array([rng.uniform(-0.4, 0.4), rng.uniform(-0.25, 0.25), top + size[2] / 2])
             b = Box3D(c, size, rot_z(rng.uniform(-np.pi, np.pi)))
-            if any(np.linalg.norm(b.center[:2] - o.center[:2]) < (np.linalg.norm(b.size[:2]) + np.linalg.norm(o.size[:2])) / 2 + 0.01
-                   for _, _, o in boxes):
+            if any(
+                np.linalg.norm(b.center[:2] - o.center[:2])
+                < (np.linalg.norm(b.size[:2]) + np.linalg.norm(o.size[:2])) / 2 + 0.01
+                for _, _, o in boxes
+            ):
                 continue
             boxes.append((cat, str(rng.choice(sorted(COLOURS))), b))
     if camera is None:
@@ -98,11 +119,20 @@ def toy_frame(rng: np.random.Generator, n_objects: int = 6, width: int = 320, he
         if not m.any():
             continue
         ys, xs = np.nonzero(m)
-        objects.append(ObjectInstance(
-            id=k + 1, category=cat, box=b, mask=RLE.encode(m),
-            bbox2d=(float(xs.min()), float(ys.min()), float(xs.max() + 1), float(ys.max() + 1)),
-            visible_fraction=1.0, attributes={"color": colour},
-            front=np.array([1.0, 0.0, 0.0]), front_phrase="the front", provenance={"source": "toy"}))
+        objects.append(
+            ObjectInstance(
+                id=k + 1,
+                category=cat,
+                box=b,
+                mask=RLE.encode(m),
+                bbox2d=(float(xs.min()), float(ys.min()), float(xs.max() + 1), float(ys.max() + 1)),
+                visible_fraction=1.0,
+                attributes={"color": colour},
+                front=np.array([1.0, 0.0, 0.0]),
+                front_phrase="the front",
+                provenance={"source": "toy"},
+            )
+        )
     rgb = np.clip(rgb * np.where(idx >= 0, shade, 1.0)[..., None], 0, 255).astype(np.uint8)
     surfaces = [SupportSurface("table", "table", TABLE, None, "the table")]
     return Frame(frame_id, rgb, depth, camera, objects, surfaces, source="toy", scene_id=frame_id)

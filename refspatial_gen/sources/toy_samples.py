@@ -15,8 +15,9 @@ from refspatial_gen.core.model import KeyStep, Node, QAPair, RelationFact, Sampl
 from refspatial_gen.sources.toy import toy_frame
 
 
-def make_sample(rng: np.random.Generator, idx: int, *, views: int = 1, width: int = 320, height: int = 240,
-                n_qa: int = 3) -> Sample:
+def make_sample(
+    rng: np.random.Generator, idx: int, *, views: int = 1, width: int = 320, height: int = 240, n_qa: int = 3
+) -> Sample:
     """One Sample of `views` toy frames (same boxes, different cameras when views > 1)."""
 
     first = toy_frame(rng, int(rng.integers(3, 6)), width, height, frame_id=f"toy:{idx:06d}:v0")
@@ -29,9 +30,15 @@ def make_sample(rng: np.random.Generator, idx: int, *, views: int = 1, width: in
         nodes = []
         for o in f.objects:
             px = answer_pixel(o.mask.decode())
-            nodes.append(Node(o.id, o.category, {"color": o.attributes.get("color")},
-                              [f"the {o.attributes.get('color')} {o.category}"],
-                              normalise_point(px[0], px[1], f.camera.width, f.camera.height)))
+            nodes.append(
+                Node(
+                    o.id,
+                    o.category,
+                    {"color": o.attributes.get("color")},
+                    [f"the {o.attributes.get('color')} {o.category}"],
+                    normalise_point(px[0], px[1], f.camera.width, f.camera.height),
+                )
+            )
         facts = []
         if len(f.objects) >= 2:
             a, b = f.objects[0], f.objects[1]
@@ -49,16 +56,36 @@ def make_sample(rng: np.random.Generator, idx: int, *, views: int = 1, width: in
         keys: list[KeyStep] = []
         if steps > 1:
             keys = [KeyStep("Position", node.phrases[0], list(pt))]
-            trace = f"<think>[Position] [{node.phrases[0]}]: ({pt[0]:.3f}, {pt[1]:.3f})</think><answer>[({pt[0]:.3f}, {pt[1]:.3f})]</answer>"
-        qa.append(QAPair(
-            qa_id=f"{f0.frame_id}:q{j}", family=fam, template=f"{fam}.t{j % 2}",
-            question=f"Point to {node.phrases[0]}. Answer with a list of tuples [(x, y)] of normalised coordinates.",
-            answer=f"[({pt[0]:.3f}, {pt[1]:.3f})]", answer_struct={"kind": "points", "points": [list(pt)]},
-            relations=["left_of"] if j % 2 else [], steps=steps, frame_ids=[f.frame_id for f in frames],
-            image_size=(f0.camera.width, f0.camera.height), program=[{"op": "select", "arg": node.phrases[0]}],
-            trace=trace, key_steps=keys, checks=["point_in_mask"], targets=[node.object_id]))
-    return Sample(sample_id=f"toy:{idx:06d}", frames=frames, graphs=graphs, qa=qa, unit_key=f"toy:{idx:06d}",
-                  meta={"source": "toy", "views": views})
+            xy = f"({pt[0]:.3f}, {pt[1]:.3f})"
+            trace = f"<think>[Position] [{node.phrases[0]}]: {xy}</think><answer>[{xy}]</answer>"
+        qa.append(
+            QAPair(
+                qa_id=f"{f0.frame_id}:q{j}",
+                family=fam,
+                template=f"{fam}.t{j % 2}",
+                question=f"Point to {node.phrases[0]}. Answer with a list of tuples [(x, y)] of normalised "
+                "coordinates.",
+                answer=f"[({pt[0]:.3f}, {pt[1]:.3f})]",
+                answer_struct={"kind": "points", "points": [list(pt)]},
+                relations=["left_of"] if j % 2 else [],
+                steps=steps,
+                frame_ids=[f.frame_id for f in frames],
+                image_size=(f0.camera.width, f0.camera.height),
+                program=[{"op": "select", "arg": node.phrases[0]}],
+                trace=trace,
+                key_steps=keys,
+                checks=["point_in_mask"],
+                targets=[node.object_id],
+            )
+        )
+    return Sample(
+        sample_id=f"toy:{idx:06d}",
+        frames=frames,
+        graphs=graphs,
+        qa=qa,
+        unit_key=f"toy:{idx:06d}",
+        meta={"source": "toy", "views": views},
+    )
 
 
 def make_samples(n: int, seed: int = 0, **kw) -> list[Sample]:

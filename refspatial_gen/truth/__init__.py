@@ -4,5 +4,13 @@ See `sizes.py` for the API and docs/quality.md ("Truth checks") for how sources 
 """
 
 from refspatial_gen.truth.sizes import (  # noqa: F401
-    IMPLAUSIBLE, UNRANGED, SizeRange, can_bear, canonical, check_size, object_class, size_range, typical_height,
+    IMPLAUSIBLE,
+    UNRANGED,
+    SizeRange,
+    can_bear,
+    canonical,
+    check_size,
+    object_class,
+    size_range,
+    typical_height,
 )

@@ -13,10 +13,11 @@ no metric or size question rather than a guess.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any
 
 DATA = Path(__file__).parent / "data"
 
@@ -54,8 +55,12 @@ def normalise(category: str) -> str:
 def _range(v: Any, where: str) -> Range | None:
     if v is None:
         return None
-    if not (isinstance(v, (list, tuple)) and len(v) == 2 and all(isinstance(x, (int, float)) for x in v)
-            and 0 < v[0] <= v[1]):
+    if not (
+        isinstance(v, (list, tuple))
+        and len(v) == 2
+        and all(isinstance(x, (int, float)) for x in v)
+        and 0 < v[0] <= v[1]
+    ):
         raise ValueError(f"{where}: a range must be [lo, hi] with 0 < lo <= hi, got {v!r}")
     return float(v[0]), float(v[1])
 
@@ -82,9 +87,15 @@ def _sizes() -> tuple[dict[str, SizeRange], dict[str, str], dict[str, str]]:
         ext = _range(e.get("extent"), where)
         if ext is None:
             raise ValueError(f"{where}: needs 'extent'")
-        out[key] = SizeRange(key, ext, _range(e.get("height"), where), _range(e.get("length"), where),
-                             float(e["typical"]) if e.get("typical") is not None else None,
-                             bool(e.get("anchor", False)), src)
+        out[key] = SizeRange(
+            key,
+            ext,
+            _range(e.get("height"), where),
+            _range(e.get("length"), where),
+            float(e["typical"]) if e.get("typical") is not None else None,
+            bool(e.get("anchor", False)),
+            src,
+        )
     aliases = {normalise(a): normalise(c) for a, c in (raw.get("aliases") or {}).items()}
     bad = sorted(a for a, c in aliases.items() if c not in out)
     if bad:
@@ -118,8 +129,7 @@ def typical_height(category: str) -> float | None:
     return None if r is None else r.typical
 
 
-def _out_of(v: float, rng: Range | None, tol: float, low: str, high: str,
-            lower_bound: bool = False) -> str | None:
+def _out_of(v: float, rng: Range | None, tol: float, low: str, high: str, lower_bound: bool = False) -> str | None:
     if rng is None:
         return None
     lo, hi = rng
@@ -130,8 +140,13 @@ def _out_of(v: float, rng: Range | None, tol: float, low: str, high: str,
     return None
 
 
-def check_size(category: str, size_xyz: Sequence[float], dims: Iterable[str] = ("height", "length", "extent"),
-               tolerance: float = 0.0, lower_bounds: Iterable[str] = ()) -> str | None:
+def check_size(
+    category: str,
+    size_xyz: Sequence[float],
+    dims: Iterable[str] = ("height", "length", "extent"),
+    tolerance: float = 0.0,
+    lower_bounds: Iterable[str] = (),
+) -> str | None:
     """Why an object of `category` with this gravity-aligned box size (x, y horizontal, z vertical;
     metres) is implausible, or None when it is plausible.
 
@@ -181,15 +196,25 @@ def _bearing() -> _Bearing:
     raw = _load_yaml("bearing.yaml")
     groups = {canonical(c): g for g, cats in (raw.get("groups") or {}).items() for c in cats}
     cls = raw.get("classes") or {}
-    bears = {canonical(k): frozenset(canonical(x) if x not in ("any", "small", "medium") and x not in
-                                     (raw.get("groups") or {}) else x for x in (v.get("bears") or ()))
-             for k, v in (raw.get("bearers") or {}).items()}
+    bears = {
+        canonical(k): frozenset(
+            canonical(x) if x not in ("any", "small", "medium") and x not in (raw.get("groups") or {}) else x
+            for x in (v.get("bears") or ())
+        )
+        for k, v in (raw.get("bearers") or {}).items()
+    }
     never = frozenset(canonical(c) for c in raw.get("never") or ())
     clash = sorted(never & set(bears))
     if clash:
         raise ValueError(f"bearing.yaml: categories both bearers and 'never': {clash}")
-    return _Bearing(bears, never, groups, float(cls.get("small_max_extent", 0.5)),
-                    float(cls.get("medium_max_extent", 1.3)), float(raw.get("max_overhang", 1.5)))
+    return _Bearing(
+        bears,
+        never,
+        groups,
+        float(cls.get("small_max_extent", 0.5)),
+        float(cls.get("medium_max_extent", 1.3)),
+        float(raw.get("max_overhang", 1.5)),
+    )
 
 
 def object_class(category: str, size: Sequence[float] | None = None) -> str | None:
@@ -211,8 +236,13 @@ def object_class(category: str, size: Sequence[float] | None = None) -> str | No
     return "small" if hi <= b.small else "medium" if hi <= b.medium else "large"
 
 
-def can_bear(support_category: str, object_category: str, support_size: Sequence[float] | None = None,
-             object_size: Sequence[float] | None = None, unknown: bool = False) -> bool:
+def can_bear(
+    support_category: str,
+    object_category: str,
+    support_size: Sequence[float] | None = None,
+    object_size: Sequence[float] | None = None,
+    unknown: bool = False,
+) -> bool:
     """Can an object of `support_category` carry one of `object_category` on its top?
 
     Category rule from bearing.yaml (a table carries a cup; a car, a bus, a person or an umbrella
@@ -239,5 +269,18 @@ def bearer_categories() -> list[str]:
     return sorted(_bearing().bears)
 
 
-__all__ = ["IMPLAUSIBLE", "SizeRange", "UNRANGED", "bearer_categories", "can_bear", "canonical", "check_size",
-           "normalise", "object_class", "ranged_categories", "size_range", "source_text", "typical_height"]
+__all__ = [
+    "IMPLAUSIBLE",
+    "SizeRange",
+    "UNRANGED",
+    "bearer_categories",
+    "can_bear",
+    "canonical",
+    "check_size",
+    "normalise",
+    "object_class",
+    "ranged_categories",
+    "size_range",
+    "source_text",
+    "typical_height",
+]

@@ -3,6 +3,10 @@
 Why these rules: "left" is judged on 3D centres in the camera frame (RefSpatial), but a person checks it
 in the image; when perspective makes the two disagree the relation is left undecided rather than asked.
 "Front" uses nearest-face depth, and is undecided when centre depths order the objects the other way.
+Both are undecided when the two boxes overlap: footprints intersecting and extents along the axis asked
+sharing more than half the shorter one (camera x for left/right,
+depth for front/behind): a cup on the right half of a table is not "right of the table", nor is a cup
+standing on it "behind" the table's front edge.
 """
 
 from __future__ import annotations
@@ -24,6 +28,19 @@ from refspatial_gen.graph.relations.common import (
 from refspatial_gen.graph.relations.lookup import pair_cell, pair_table
 from refspatial_gen.graph.scene import SceneGeom
 
+OVERLAP_SHARE = 0.5  # extents sharing more than this share of the shorter one along the axis: undecided
+
+
+def overlapping(geom: SceneGeom, axis: int) -> np.ndarray:
+    """[i, j]: the two boxes overlap: their ground footprints intersect (one stands on or in the other) and
+    their extents along camera axis `axis` (0 x, 2 depth) share more than OVERLAP_SHARE of the shorter one.
+    Neighbours with disjoint footprints stay decided however perspective stretches their extents."""
+    lo, hi = geom.cam_lo[:, axis], geom.cam_hi[:, axis]
+    common = np.minimum(hi[:, None], hi[None, :]) - np.maximum(lo[:, None], lo[None, :])
+    ext = hi - lo
+    fp = geom.footprint_overlap
+    return (common > OVERLAP_SHARE * np.minimum(ext[:, None], ext[None, :])) & (np.maximum(fp, fp.T) > 0)
+
 
 def _lateral(geom: SceneGeom) -> Matrices:
     x = geom.cam_centers[:, 0]
@@ -32,7 +49,7 @@ def _lateral(geom: SceneGeom) -> Matrices:
     du = u[None, :] - u[:, None]
     codes = decide_matrix(v, geom.th.lateral_margin)
     disagree = (np.sign(du) != np.sign(v)) | (np.abs(du) < 0.5 * geom.th.image_margin)
-    codes[disagree] = UNDECIDED
+    codes[disagree | overlapping(geom, 0)] = UNDECIDED
     return v, codes, geom.th.lateral_margin
 
 
@@ -42,7 +59,7 @@ def _depthwise(geom: SceneGeom) -> Matrices:
     c = geom.center_depth
     vc = c[None, :] - c[:, None]
     codes = decide_matrix(v, geom.th.depth_margin)
-    codes[np.sign(vc) != np.sign(v)] = UNDECIDED
+    codes[(np.sign(vc) != np.sign(v)) | overlapping(geom, 2)] = UNDECIDED
     return v, codes, geom.th.depth_margin
 
 
@@ -109,7 +126,8 @@ _pair(
     "cam",
     "camera-x of B's centre minus A's (m)",
     "lateral_margin, image_margin",
-    "A's centre is left of B's in the camera frame by more than the margin, and the image agrees",
+    "A's centre is left of B's in the camera frame by more than the margin, the image agrees and their "
+    "boxes do not overlap (footprints, half the shorter x extent)",
 )
 _mirror(
     "right",
@@ -124,7 +142,8 @@ _pair(
     "cam",
     "nearest-face depth of B minus A's (m)",
     "depth_margin",
-    "A's nearest face is nearer the camera than B's by the margin (centre depths agree)",
+    "A's nearest face is nearer the camera than B's by the margin (centre depths agree, boxes do not overlap "
+    "(footprints, half the shorter depth extent))",
 )
 _mirror(
     "behind",

@@ -41,6 +41,13 @@ def _above(geom: SceneGeom) -> Matrices:
         tol = g.th.stack_tolerance
         codes = decide_matrix(v, g.th.vertical_margin)
         stacked = g.lo[:, None, 2] >= g.hi[None, :, 2] - tol  # i's bottom at or above j's top
+        # both ways round (two objects thinner than the tolerance, side by side at one level): no stack, or
+        # the sign of a rounding-sized centre difference would decide which is "above"
+        stacked &= ~stacked.T
+        # side by side with overlapping heights (a tall lamp by a short cup) is not "above", however the
+        # centres differ; a resting stack may overlap by the tolerance
+        overlap = np.minimum(g.hi[:, None, 2], g.hi[None, :, 2]) - np.maximum(g.lo[:, None, 2], g.lo[None, :, 2])
+        codes[overlap > tol] = UNDECIDED
         codes[stacked & (v > 0)] = TRUE
         codes[stacked.T & (v < 0)] = FALSE
         np.fill_diagonal(codes, UNDECIDED)
@@ -144,7 +151,8 @@ register(
         2,
         "centre height of A minus B's (m)",
         "vertical_margin, stack_tolerance",
-        "A's bottom is at or above B's top, or A's centre is higher by the margin (gravity frame)",
+        "A's bottom is at or above B's top, or A's centre is higher by the margin and their heights do not "
+        "overlap by more than the stack tolerance (gravity frame)",
         needs=G,
         qa="ordered",
         evaluate=pair_evaluator(_above, "above_world"),

@@ -31,7 +31,9 @@ def stage_times(n_scenes: int = 10, seed: int = 0, config: dict[str, Any] | None
             drops[e.reason] = drops.get(e.reason, 0) + 1
     total = time.perf_counter() - t0
     return {
-        "scenes": n_scenes, "frames": frames, "dropped": dict(sorted(drops.items())),
+        "scenes": n_scenes,
+        "frames": frames,
+        "dropped": dict(sorted(drops.items())),
         "seconds": {k: round(v, 3) for k, v in sorted(t.items())} | {"total": round(total, 3)},
         "frames_per_s": round(frames / total, 3) if total > 0 else 0.0,
         "ms_per_frame": {k: round(1000 * v / max(frames, 1), 1) for k, v in sorted(t.items())},

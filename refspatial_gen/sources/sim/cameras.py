@@ -28,13 +28,28 @@ def _blocked(eye: np.ndarray, boxes: list[Box3D], pad: float = 0.06) -> bool:
 def _score(cam: Camera, centres: np.ndarray) -> int:
     uv, z = cam.project(centres)
     m = 0.06
-    ok = (z > 0.1) & (uv[:, 0] > m * cam.width) & (uv[:, 0] < (1 - m) * cam.width) & (uv[:, 1] > m * cam.height) & (uv[:, 1] < (1 - m) * cam.height)
+    ok = (
+        (z > 0.1)
+        & (uv[:, 0] > m * cam.width)
+        & (uv[:, 0] < (1 - m) * cam.width)
+        & (uv[:, 1] > m * cam.height)
+        & (uv[:, 1] < (1 - m) * cam.height)
+    )
     return int(ok.sum())
 
 
-def sample_cameras(kind: str, target: np.ndarray, support_z: float, boxes: list[Box3D], rng: np.random.Generator,
-                   cfg: dict[str, Any], n_views: int, room_half: np.ndarray | None = None,
-                   centres: np.ndarray | None = None, candidates: int = 8) -> list[Camera]:
+def sample_cameras(
+    kind: str,
+    target: np.ndarray,
+    support_z: float,
+    boxes: list[Box3D],
+    rng: np.random.Generator,
+    cfg: dict[str, Any],
+    n_views: int,
+    room_half: np.ndarray | None = None,
+    centres: np.ndarray | None = None,
+    candidates: int = 8,
+) -> list[Camera]:
     """`n_views` cameras looking at `target`; eyes outside every box in `boxes` (objects, furniture).
 
     For each view, `candidates` poses are drawn and the one that shows most object centres wins

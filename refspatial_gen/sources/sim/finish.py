@@ -26,8 +26,9 @@ def draw_finish(ranges: dict[str, tuple[float, float]], rng: np.random.Generator
     return out
 
 
-def draw_finishes(objects: list[Any], material_ranges: dict[str, dict[str, tuple[float, float]]],
-                  rng: np.random.Generator) -> None:
+def draw_finishes(
+    objects: list[Any], material_ranges: dict[str, dict[str, tuple[float, float]]], rng: np.random.Generator
+) -> None:
     """Set `o.finish` on every placed object, in order."""
     for o in objects:
         o.finish = draw_finish(material_ranges.get(o.material, {}), rng)

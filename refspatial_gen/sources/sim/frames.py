@@ -56,8 +56,15 @@ def scene_boxes(sim: SimModel, desc: SceneDesc) -> list[tuple[Box3D, np.ndarray]
     return out
 
 
-def make_frames(unit_key: str, desc: SceneDesc, sim: SimModel, cams: list[Camera], renders: list[RenderOut],
-                boxes: list[tuple[Box3D, np.ndarray]], meta: dict) -> list[Frame]:
+def make_frames(
+    unit_key: str,
+    desc: SceneDesc,
+    sim: SimModel,
+    cams: list[Camera],
+    renders: list[RenderOut],
+    boxes: list[tuple[Box3D, np.ndarray]],
+    meta: dict,
+) -> list[Frame]:
     frames = []
     supports = _object_supports(desc, boxes)
     for v, (cam, r) in enumerate(zip(cams, renders)):
@@ -77,25 +84,56 @@ def make_frames(unit_key: str, desc: SceneDesc, sim: SimModel, cams: list[Camera
                 if abs(fw[2]) < FRONT_MAX_TILT_Z:
                     fb = box.rotation.T @ fw
                     front, phrase = fb / np.linalg.norm(fb), o.category.front_phrase
-            objects.append(ObjectInstance(
-                id=k + 1, category=o.category.label, box=box, mask=RLE.encode(m),
-                bbox2d=(float(cols[0]), float(rows[0]), float(cols[-1] + 1), float(rows[-1] + 1)),
-                visible_fraction=round(vis, 4), attributes={"color": o.color, "material": o.material},
-                front=front, front_phrase=phrase,
-                provenance={"source": "sim", "asset": o.category.name, "support": supports[k], "pixels": n,
-                            **({"finish": dict(o.finish)} if o.finish else {})}))
+            objects.append(
+                ObjectInstance(
+                    id=k + 1,
+                    category=o.category.label,
+                    box=box,
+                    mask=RLE.encode(m),
+                    bbox2d=(float(cols[0]), float(rows[0]), float(cols[-1] + 1), float(rows[-1] + 1)),
+                    visible_fraction=round(vis, 4),
+                    attributes={"color": o.color, "material": o.material},
+                    front=front,
+                    front_phrase=phrase,
+                    provenance={
+                        "source": "sim",
+                        "asset": o.category.name,
+                        "support": supports[k],
+                        "pixels": n,
+                        **({"finish": dict(o.finish)} if o.finish else {}),
+                    },
+                )
+            )
         visible = {ob.id for ob in objects}
         surfaces = []
         for s in desc.surfaces:
             (x, y), (hx, hy) = s.center, s.half
             t = max(s.thickness, 0.01)
-            surfaces.append(SupportSurface(s.id, s.kind, Box3D(np.array([x, y, s.z - t / 2]), np.array([2 * hx, 2 * hy, t]), np.eye(3)),
-                                           None, s.name))
+            surfaces.append(
+                SupportSurface(
+                    s.id,
+                    s.kind,
+                    Box3D(np.array([x, y, s.z - t / 2]), np.array([2 * hx, 2 * hy, t]), np.eye(3)),
+                    None,
+                    s.name,
+                )
+            )
         for k in sorted({int(sp[4:]) for sp in supports if sp.startswith("obj:")}):
             if k + 1 in visible:
                 surfaces.append(SupportSurface(f"obj:{k + 1}", "object", boxes[k][0], k + 1, None))
-        frames.append(Frame(f"{unit_key}/v{v}", r.rgb, r.depth, cam, objects, surfaces, source="sim", scene_id=unit_key,
-                            meta={**meta, "view": v, "n_views": len(cams)}))
+        frames.append(
+            Frame(
+                f"{unit_key}/v{v}",
+                r.rgb,
+                r.depth,
+                cam,
+                objects,
+                surfaces,
+                source="sim",
+                scene_id=unit_key,
+                meta={**meta, "view": v, "n_views": len(cams)},
+            )
+        )
     return frames
 
 
@@ -115,7 +153,11 @@ def _object_supports(desc: SceneDesc, boxes: list[tuple[Box3D, np.ndarray]]) -> 
                 elif desc.objects[j].geometry.cavity is not None and lo_a[2] - 0.01 <= b.bottom_z < a.top_z - 0.005:
                     best = f"inside:{j}"
         if best is None:
-            cands = [s for s in desc.surfaces if abs(b.bottom_z - s.z) < 0.02 and np.all(np.abs(b.center[:2] - s.center) <= s.half + 0.02)]
+            cands = [
+                s
+                for s in desc.surfaces
+                if abs(b.bottom_z - s.z) < 0.02 and np.all(np.abs(b.center[:2] - s.center) <= s.half + 0.02)
+            ]
             best = cands[0].id if cands else "unknown"
         out.append(best)
     return out

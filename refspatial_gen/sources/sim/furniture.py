@@ -17,7 +17,9 @@ WALLS = ("back", "left", "right")
 GAP = 0.02  # between a piece and its wall
 
 
-def wall_rect(room_half: np.ndarray, wall: str, along: float, width: float, depth: float) -> tuple[float, float, float, float]:
+def wall_rect(
+    room_half: np.ndarray, wall: str, along: float, width: float, depth: float
+) -> tuple[float, float, float, float]:
     """(cx, cy, hx, hy) of a piece `width` wide and `depth` deep against `wall`, at `along` in [-1, 1]."""
     rx, ry = room_half
     if wall == "back":
@@ -78,8 +80,10 @@ def shelf_unit(b: LayoutBuilder, floor: Surface, wall: str, along: float) -> lis
         _box(b, f"shelf_side{sgn:+d}", c, h, "shelf")
     ix, iy = (hx - t, hy - 0.012) if side_axis == 0 else (hx - 0.012, hy - t)
     gap = height / n
-    names = {3: ["the bottom shelf", "the middle shelf", "the top shelf"],
-             4: ["the bottom shelf", "the second shelf", "the third shelf", "the top shelf"]}[n]
+    names = {
+        3: ["the bottom shelf", "the middle shelf", "the top shelf"],
+        4: ["the bottom shelf", "the second shelf", "the third shelf", "the top shelf"],
+    }[n]
     out = []
     for i in range(n):
         z = 0.06 + i * gap
@@ -134,7 +138,13 @@ def sofa(b: LayoutBuilder, floor: Surface, along: float) -> list[Surface]:
     _box(b, "sofa_base", [cx, cy, seat / 2], [hx, hy, seat / 2], "sofa")
     _box(b, "sofa_back", [cx, cy + hy - back / 2, 0.425], [hx, back / 2, 0.425], "sofa")
     for sgn in (-1, 1):
-        _box(b, f"sofa_arm{sgn:+d}", [cx + sgn * (hx - arm / 2), cy - back / 2, seat + 0.09], [arm / 2, hy - back / 2, 0.09], "sofa")
+        _box(
+            b,
+            f"sofa_arm{sgn:+d}",
+            [cx + sgn * (hx - arm / 2), cy - back / 2, seat + 0.09],
+            [arm / 2, hy - back / 2, 0.09],
+            "sofa",
+        )
     sx, sy = hx - arm - 0.01, (depth - back) / 2 - 0.01
     return [_surface(b, "sofa", "sofa", "the sofa", cx, cy - back / 2, sx, sy, seat, 0.1)]
 
@@ -153,8 +163,18 @@ def bed(b: LayoutBuilder, floor: Surface, along: float) -> list[Surface]:
     return [_surface(b, "bed", "bed", "the bed", cx, cy - 0.1, hx - 0.06, hy - 0.25, top, 0.2)]
 
 
-def wall_table(b: LayoutBuilder, floor: Surface, wall: str, along: float, width: float, depth: float, h: float,
-               sid: str, name: str, kind: str) -> list[Surface]:
+def wall_table(
+    b: LayoutBuilder,
+    floor: Surface,
+    wall: str,
+    along: float,
+    width: float,
+    depth: float,
+    h: float,
+    sid: str,
+    name: str,
+    kind: str,
+) -> list[Surface]:
     """A table against a wall (desk, nightstand, side table)."""
     cx, cy, hx, hy = wall_rect(floor.half, wall, along, width, depth)
     s = table(b, floor, sid, name, cx, cy, hx, hy, h, kind)

@@ -19,9 +19,13 @@ def scene_stats(frames, desc) -> dict[str, Any]:
     roots = [_root_support(desc, o) for o in desc.objects]
     furniture = {s.id for s in desc.surfaces if s.kind != "floor"}
     visible = {o.id - 1 for o in frames[0].objects}
-    return {"layout": desc.kind, "placed": len(desc.objects), "visible": len(visible),
-            "surfaces": len({r for r in roots if r in furniture}),
-            "surfaces_visible": len({roots[k] for k in visible if roots[k] in furniture})}
+    return {
+        "layout": desc.kind,
+        "placed": len(desc.objects),
+        "visible": len(visible),
+        "surfaces": len({r for r in roots if r in furniture}),
+        "surfaces_visible": len({roots[k] for k in visible if roots[k] in furniture}),
+    }
 
 
 def _summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
@@ -29,15 +33,27 @@ def _summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
     for kind in ("all", "room", "tabletop"):
         rs = [r for r in rows if kind == "all" or r["layout"] == kind]
         if rs:
-            out[kind] = {"scenes": len(rs), **{f"median_{k}": float(np.median([r[k] for r in rs])) for k in
-                                             ("placed", "visible", "surfaces", "surfaces_visible")},
-                         "min_surfaces": min(r["surfaces"] for r in rs)}
+            out[kind] = {
+                "scenes": len(rs),
+                **{
+                    f"median_{k}": float(np.median([r[k] for r in rs]))
+                    for k in ("placed", "visible", "surfaces", "surfaces_visible")
+                },
+                "min_surfaces": min(r["surfaces"] for r in rs),
+            }
     return out
 
 
-def gallery(out: str | Path, n_scenes: int = 24, seed: int = 0, config: dict[str, Any] | None = None,
-            cols: int = 6, thumb_width: int = 320, quality: int = 85,
-            rng_for: Callable[[str], np.random.Generator] | None = None) -> dict[str, Any]:
+def gallery(
+    out: str | Path,
+    n_scenes: int = 24,
+    seed: int = 0,
+    config: dict[str, Any] | None = None,
+    cols: int = 6,
+    thumb_width: int = 320,
+    quality: int = 85,
+    rng_for: Callable[[str], np.random.Generator] | None = None,
+) -> dict[str, Any]:
     """Render `n_scenes` scenes (the config's layout mix; tabletop and room alternately if it has none).
     `rng_for(unit key)`: the run's unit generators; with it the sheet shows exactly the scenes a run makes
     (the run's config, no forced layouts)."""
@@ -54,8 +70,9 @@ def gallery(out: str | Path, n_scenes: int = 24, seed: int = 0, config: dict[str
             cfg["layouts"] = {"room": 1.0} if i % 2 else {"tabletop": 1.0}
         key = f"sim:{i:06d}"
         try:
-            frames, desc, _ = generate(key, rng_for(key) if rng_for else np.random.default_rng([seed, i]), cfg,
-                                     keep_scene=True)
+            frames, desc, _ = generate(
+                key, rng_for(key) if rng_for else np.random.default_rng([seed, i]), cfg, keep_scene=True
+            )
         except DropUnit as e:
             drops[e.reason] = drops.get(e.reason, 0) + 1
             i += 1
@@ -67,8 +84,11 @@ def gallery(out: str | Path, n_scenes: int = 24, seed: int = 0, config: dict[str
         im = im.resize((thumb_width, h), Image.LANCZOS)
         d = ImageDraw.Draw(im)
         d.rectangle([0, 0, thumb_width, 14], fill=(0, 0, 0))
-        d.text((3, 1), f"{key} {f.meta['layout']} {len(f.objects)}/{len(desc.objects)} obj {rows[-1]['surfaces']} surf",
-               fill=(255, 255, 255))
+        d.text(
+            (3, 1),
+            f"{key} {f.meta['layout']} {len(f.objects)}/{len(desc.objects)} obj {rows[-1]['surfaces']} surf",
+            fill=(255, 255, 255),
+        )
         thumbs.append(im)
         i += 1
     if not thumbs:
@@ -84,4 +104,10 @@ def gallery(out: str | Path, n_scenes: int = 24, seed: int = 0, config: dict[str
         sheet.save(out, quality=quality, optimize=True)
     else:
         sheet.save(out)
-    return {"out": str(out), "scenes": len(thumbs), "dropped": drops, "bytes": out.stat().st_size, "stats": _summary(rows)}
+    return {
+        "out": str(out),
+        "scenes": len(thumbs),
+        "dropped": drops,
+        "bytes": out.stat().st_size,
+        "stats": _summary(rows),
+    }

@@ -12,8 +12,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from shapely.geometry import Polygon, box as shp_box
 from shapely import affinity
+from shapely.geometry import Polygon
+from shapely.geometry import box as shp_box
 
 from refspatial_gen.assets import AssetGeometry, Catalog, Category, build_geometry
 from refspatial_gen.assets.external import external_available
@@ -116,15 +117,35 @@ class LayoutBuilder:
         self.external = ext_ok if (cfg.get("external_prob") or 0.0) > 0 else []
 
     # ------------------------------------------------------------------ furniture
-    def add_table(self, sid: str, kind: str, name: str, cx: float, cy: float, hx: float, hy: float, h: float,
-                  legs: bool = True, max_height: float = 10.0, look: str | None = None) -> Surface:
+    def add_table(
+        self,
+        sid: str,
+        kind: str,
+        name: str,
+        cx: float,
+        cy: float,
+        hx: float,
+        hy: float,
+        h: float,
+        legs: bool = True,
+        max_height: float = 10.0,
+        look: str | None = None,
+    ) -> Surface:
         t = 0.03 if kind != "shelf" else 0.02
-        self.statics.append(StaticBox(f"{sid}_top", np.array([cx, cy, h - t / 2]), np.array([hx, hy, t / 2]), look or kind))
+        self.statics.append(
+            StaticBox(f"{sid}_top", np.array([cx, cy, h - t / 2]), np.array([hx, hy, t / 2]), look or kind)
+        )
         if legs:
             for sx in (-1, 1):
                 for sy in (-1, 1):
-                    self.statics.append(StaticBox(f"{sid}_leg{sx}{sy}", np.array([cx + sx * (hx - 0.05), cy + sy * (hy - 0.05), (h - t) / 2]),
-                                                  np.array([0.025, 0.025, (h - t) / 2]), "leg"))
+                    self.statics.append(
+                        StaticBox(
+                            f"{sid}_leg{sx}{sy}",
+                            np.array([cx + sx * (hx - 0.05), cy + sy * (hy - 0.05), (h - t) / 2]),
+                            np.array([0.025, 0.025, (h - t) / 2]),
+                            "leg",
+                        )
+                    )
         s = Surface(sid, kind, name, np.array([cx, cy]), np.array([hx, hy]), h, t, max_height)
         self.surfaces.append(s)
         return s
@@ -132,14 +153,27 @@ class LayoutBuilder:
     # ------------------------------------------------------------------ objects
     def pick_category(self, scale: str, want_inside: bool = False) -> Category:
         rng = self.rng
-        if self.external and scale == "tabletop" and not want_inside and rng.random() < (self.cfg.get("external_prob") or 0.0):
+        if (
+            self.external
+            and scale == "tabletop"
+            and not want_inside
+            and rng.random() < (self.cfg.get("external_prob") or 0.0)
+        ):
             return self.cat.categories[self.external[int(rng.integers(len(self.external)))]]
-        same = [o.category for o in self.objects if o.category.scale == scale and o.category.builder != "external"
-                and (o.category.fits_inside or not want_inside)]
+        same = [
+            o.category
+            for o in self.objects
+            if o.category.scale == scale
+            and o.category.builder != "external"
+            and (o.category.fits_inside or not want_inside)
+        ]
         if same and rng.random() < self.cfg.get("repeat_prob", 0.3):
             return same[int(rng.integers(len(same)))]
-        names = [n for n in self.cat.names(scale) if self.cat.categories[n].builder != "external"
-                 and (self.cat.categories[n].fits_inside or not want_inside)]
+        names = [
+            n
+            for n in self.cat.names(scale)
+            if self.cat.categories[n].builder != "external" and (self.cat.categories[n].fits_inside or not want_inside)
+        ]
         w = np.array([self.cat.categories[n].weight for n in names])
         return self.cat.categories[names[int(rng.choice(len(names), p=w / w.sum()))]]
 
@@ -165,7 +199,9 @@ class LayoutBuilder:
         return float(rng.uniform(-np.pi, np.pi))
 
     def _add(self, cat, geo, color, rgb, acc, mat, pos, yaw, support, fp) -> PlacedObject:
-        o = PlacedObject(f"o{len(self.objects):02d}", cat, geo, color, rgb, acc, mat, np.asarray(pos, float), yaw, support, fp)
+        o = PlacedObject(
+            f"o{len(self.objects):02d}", cat, geo, color, rgb, acc, mat, np.asarray(pos, float), yaw, support, fp
+        )
         self.objects.append(o)
         return o
 
@@ -185,7 +221,9 @@ class LayoutBuilder:
                 side = int(rng.integers(2))
                 u[side] = np.sign(u[side] + 1e-9) * rng.uniform(1 - band / max(surf.half[side], band), 1)
                 if rng.random() < 0.4:  # corner
-                    u[1 - side] = np.sign(u[1 - side] + 1e-9) * rng.uniform(1 - band / max(surf.half[1 - side], band), 1)
+                    u[1 - side] = np.sign(u[1 - side] + 1e-9) * rng.uniform(
+                        1 - band / max(surf.half[1 - side], band), 1
+                    )
                 xy = surf.center + u * surf.half
             else:
                 xy = surf.center + rng.uniform(-1, 1, 2) * surf.half
@@ -233,8 +271,12 @@ class LayoutBuilder:
         geo, color, rgb, acc, mat = self.make(cat)
         lo, hi = geo.bounds()
         cc, cs = box.geometry.cavity
-        cav = affinity.rotate(shp_box(-cs[0] / 2 + 0.004, -cs[1] / 2 + 0.004, cs[0] / 2 - 0.004, cs[1] / 2 - 0.004),
-                              box.yaw, origin=(0, 0), use_radians=True)
+        cav = affinity.rotate(
+            shp_box(-cs[0] / 2 + 0.004, -cs[1] / 2 + 0.004, cs[0] / 2 - 0.004, cs[1] / 2 - 0.004),
+            box.yaw,
+            origin=(0, 0),
+            use_radians=True,
+        )
         cav = affinity.translate(cav, box.pos[0] + cc[0], box.pos[1] + cc[1])
         for _ in range(tries):
             yaw = float(rng.uniform(-np.pi, np.pi))
@@ -257,8 +299,11 @@ class LayoutBuilder:
         while placed < n and attempts < 4 * n + 10:
             attempts += 1
             mine = [o for o in self.objects if o.support in {s.id for s in surfaces}]
-            containers = [o for o in mine if o.geometry.cavity is not None and len(o.top_fps) < 2
-                          and min(o.geometry.cavity[1][:2]) > 0.075]
+            containers = [
+                o
+                for o in mine
+                if o.geometry.cavity is not None and len(o.top_fps) < 2 and min(o.geometry.cavity[1][:2]) > 0.075
+            ]
             flats = [o for o in mine if o.geometry.flat_top and len(o.top_fps) < 2]
             r = rng.random()
             obj = None
@@ -276,12 +321,28 @@ class LayoutBuilder:
             elif flats and r < inside_p + stack_p:
                 obj = self.stack_on(flats[int(rng.integers(len(flats)))], self.pick_category(scale))
             else:
-                obj = self.place_on_surface(surfaces[int(rng.choice(len(surfaces), p=sw / sw.sum()))], self.pick_category(scale))
+                obj = self.place_on_surface(
+                    surfaces[int(rng.choice(len(surfaces), p=sw / sw.sum()))], self.pick_category(scale)
+                )
             placed += obj is not None
 
 
-TABLE_TINTS = [(1.0, 0.85, 0.7), (0.75, 0.55, 0.4), (0.55, 0.38, 0.25), (0.95, 0.95, 0.95), (0.35, 0.35, 0.37), (0.9, 0.8, 0.65)]
-FABRICS = [(0.45, 0.5, 0.58), (0.6, 0.55, 0.48), (0.35, 0.4, 0.33), (0.55, 0.25, 0.22), (0.3, 0.3, 0.32), (0.75, 0.72, 0.66)]
+TABLE_TINTS = [
+    (1.0, 0.85, 0.7),
+    (0.75, 0.55, 0.4),
+    (0.55, 0.38, 0.25),
+    (0.95, 0.95, 0.95),
+    (0.35, 0.35, 0.37),
+    (0.9, 0.8, 0.65),
+]
+FABRICS = [
+    (0.45, 0.5, 0.58),
+    (0.6, 0.55, 0.48),
+    (0.35, 0.4, 0.33),
+    (0.55, 0.25, 0.22),
+    (0.3, 0.3, 0.32),
+    (0.75, 0.72, 0.66),
+]
 
 
 def _pick(rng: np.random.Generator, options: list) -> np.ndarray:
@@ -292,10 +353,15 @@ def appearance(rng: np.random.Generator) -> dict[str, Any]:
     """Random looks of the room and furniture (lights are sampled separately, see lighting.py)."""
     tint = _pick(rng, TABLE_TINTS) * rng.uniform(0.9, 1.1)
     return {
-        "table_tex": int(rng.integers(4)), "table_tint": np.clip(tint, 0, 1),
-        "floor_tex": int(rng.integers(3)), "floor_rgb1": rng.uniform(0.35, 0.8) * _pick(rng, TABLE_TINTS),
-        "wall_rgb": rng.uniform(0.65, 0.95, 3), "counter_rgb": _pick(rng, TABLE_TINTS) * rng.uniform(0.6, 1.0),
+        "table_tex": int(rng.integers(4)),
+        "table_tint": np.clip(tint, 0, 1),
+        "floor_tex": int(rng.integers(3)),
+        "floor_rgb1": rng.uniform(0.35, 0.8) * _pick(rng, TABLE_TINTS),
+        "wall_rgb": rng.uniform(0.65, 0.95, 3),
+        "counter_rgb": _pick(rng, TABLE_TINTS) * rng.uniform(0.6, 1.0),
         "cabinet_rgb": np.clip(_pick(rng, TABLE_TINTS) * rng.uniform(0.7, 1.05), 0, 1),
-        "sofa_rgb": _pick(rng, FABRICS) * rng.uniform(0.85, 1.1), "bedding_rgb": np.clip(rng.uniform(0.75, 1.0, 3), 0, 1),
-        "ambient": float(rng.uniform(0.2, 0.35)), "headlight": 0.15,
+        "sofa_rgb": _pick(rng, FABRICS) * rng.uniform(0.85, 1.1),
+        "bedding_rgb": np.clip(rng.uniform(0.75, 1.0, 3), 0, 1),
+        "ambient": float(rng.uniform(0.2, 0.35)),
+        "headlight": 0.15,
     }

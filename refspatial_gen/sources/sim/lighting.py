@@ -32,9 +32,17 @@ class Light:
         return np.clip(self.color * self.base * self.intensity, 0, 1)
 
     def to_json(self) -> dict[str, Any]:
-        return {"kind": self.kind, "pos": [float(x) for x in self.pos], "direction": [float(x) for x in self.direction],
-                "color": [float(x) for x in self.color], "intensity": float(self.intensity), "base": self.base,
-                "diffuse": [float(x) for x in self.diffuse()], "shadow": self.shadow, "cutoff_deg": self.cutoff_deg}
+        return {
+            "kind": self.kind,
+            "pos": [float(x) for x in self.pos],
+            "direction": [float(x) for x in self.direction],
+            "color": [float(x) for x in self.color],
+            "intensity": float(self.intensity),
+            "base": self.base,
+            "diffuse": [float(x) for x in self.diffuse()],
+            "shadow": self.shadow,
+            "cutoff_deg": self.cutoff_deg,
+        }
 
 
 def _unit(v) -> np.ndarray:
@@ -42,7 +50,9 @@ def _unit(v) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
-def sample_lights(rng: np.random.Generator, cfg: dict[str, Any], target: np.ndarray, room_half: np.ndarray) -> list[Light]:
+def sample_lights(
+    rng: np.random.Generator, cfg: dict[str, Any], target: np.ndarray, room_half: np.ndarray
+) -> list[Light]:
     """1..3 lights around `target` (the middle of the objects); intensities from `light_intensity`."""
     lo_n, hi_n = (int(x) for x in cfg.get("lights", [1, 3]))
     lo_i, hi_i = (float(x) for x in cfg.get("light_intensity", [0.6, 1.4]))
@@ -57,10 +67,22 @@ def sample_lights(rng: np.random.Generator, cfg: dict[str, Any], target: np.ndar
             d = -_unit([np.cos(elev) * np.cos(az), np.cos(elev) * np.sin(az), np.sin(elev)])
             out.append(Light("directional", np.asarray(target) - 3 * d, d, warm, inten, KEY_BASE, shadows))
             continue
-        pos = np.array([rng.uniform(-0.8, 0.8) * room_half[0], rng.uniform(-0.8, 0.8) * room_half[1], rng.uniform(2.3, 2.7)])
+        pos = np.array(
+            [rng.uniform(-0.8, 0.8) * room_half[0], rng.uniform(-0.8, 0.8) * room_half[1], rng.uniform(2.3, 2.7)]
+        )
         if k == 0:
             pos[:2] = np.asarray(target)[:2] + rng.normal(0, 0.5, 2)
         d = _unit(np.asarray(target, float) + np.r_[rng.normal(0, 0.3, 2), 0.0] - pos)
-        out.append(Light("spot", pos, d, warm, inten, KEY_BASE if k == 0 else FILL_BASE, shadows and k == 0,
-                         float(rng.uniform(55, 80))))
+        out.append(
+            Light(
+                "spot",
+                pos,
+                d,
+                warm,
+                inten,
+                KEY_BASE if k == 0 else FILL_BASE,
+                shadows and k == 0,
+                float(rng.uniform(55, 80)),
+            )
+        )
     return out

@@ -25,8 +25,14 @@ class Look:
     repeat: tuple[float, float] | None = None  # tiles per metre (procedural) or None (mesh UVs)
 
     def to_json(self) -> dict[str, Any]:
-        return {"rgba": [float(x) for x in self.rgba], "specular": self.specular, "shininess": self.shininess,
-                "reflectance": self.reflectance, "texture": self.texture_key, "repeat": None if self.repeat is None else list(self.repeat)}
+        return {
+            "rgba": [float(x) for x in self.rgba],
+            "specular": self.specular,
+            "shininess": self.shininess,
+            "reflectance": self.reflectance,
+            "texture": self.texture_key,
+            "repeat": None if self.repeat is None else list(self.repeat),
+        }
 
 
 @lru_cache(maxsize=16)
@@ -45,7 +51,9 @@ def procedural_texture(kind: str, variant: int, size: int = 256) -> np.ndarray:
         img = np.stack([base, base * 0.98, base * 0.95], -1)
     else:  # grain along x: fine lines whose phase drifts slowly, plus plank seams
         drift = np.cumsum(r.normal(0, 1, size)) / size * 0.6
-        lines = np.sin(2 * np.pi * (y * [60, 90, 45][variant % 3] + drift[None, :] * 4 + 0.3 * np.sin(2 * np.pi * x * 2)))
+        lines = np.sin(
+            2 * np.pi * (y * [60, 90, 45][variant % 3] + drift[None, :] * 4 + 0.3 * np.sin(2 * np.pi * x * 2))
+        )
         fine = r.random((size, 1)) * 0.15 + r.random((size, size)) * 0.04
         planks = ((y * 4) % 1.0 < 0.012).astype(float) * 0.25
         v = 0.78 + 0.07 * lines + fine - planks
@@ -56,8 +64,13 @@ def procedural_texture(kind: str, variant: int, size: int = 256) -> np.ndarray:
 
 
 def _tex(kind: str, variant: int, rgb, repeat, **params) -> Look:
-    return Look((*map(float, rgb), 1.0), texture=procedural_texture(kind, variant), texture_key=f"{kind}{variant}",
-                repeat=repeat, **params)
+    return Look(
+        (*map(float, rgb), 1.0),
+        texture=procedural_texture(kind, variant),
+        texture_key=f"{kind}{variant}",
+        repeat=repeat,
+        **params,
+    )
 
 
 def furniture_look(look: str, ap: dict[str, Any]) -> Look:
@@ -69,7 +82,14 @@ def furniture_look(look: str, ap: dict[str, Any]) -> Look:
     if look == "cabinet":
         return _tex("wood", 3, ap["cabinet_rgb"], (1.0, 1.0), specular=0.3)
     if look in ("sofa", "bedding"):
-        return _tex("fabric", 0, ap["sofa_rgb"] if look == "sofa" else ap["bedding_rgb"], (1.5, 1.5), specular=0.02, shininess=0.05)
+        return _tex(
+            "fabric",
+            0,
+            ap["sofa_rgb"] if look == "sofa" else ap["bedding_rgb"],
+            (1.5, 1.5),
+            specular=0.02,
+            shininess=0.05,
+        )
     if look == "counter":
         return Look((*map(float, ap["counter_rgb"]), 1.0), specular=0.4)
     if look == "wall":
@@ -87,10 +107,23 @@ def part_look(o, part, colors: dict, materials: dict) -> Look:
     """An object's part: its texture or authored colour if it has one, else the instance colour by role."""
     mp = materials[o.material]
     fin = getattr(o, "finish", None) or {}  # the instance's drawn finish, else the material's nominal values
-    params = {k: float(fin.get(k, mp.get(k, d))) for k, d in (("specular", 0.3), ("shininess", 0.3), ("reflectance", 0.0))}
+    params = {
+        k: float(fin.get(k, mp.get(k, d))) for k, d in (("specular", 0.3), ("shininess", 0.3), ("reflectance", 0.0))
+    }
     if part.texture_img is not None:
-        return Look((1.0, 1.0, 1.0, 1.0), texture=part.texture_img, texture_key=part.texture or f"img{id(part.texture_img)}", **params)
+        return Look(
+            (1.0, 1.0, 1.0, 1.0),
+            texture=part.texture_img,
+            texture_key=part.texture or f"img{id(part.texture_img)}",
+            **params,
+        )
     if part.rgba is not None:
         return Look(tuple(float(x) for x in part.rgba[:3]) + (1.0,), **params)
-    rgb = o.rgb if part.role == "body" else o.accent_rgb if part.role == "accent" else colors.get(part.role, (0.5, 0.5, 0.5))
+    rgb = (
+        o.rgb
+        if part.role == "body"
+        else o.accent_rgb
+        if part.role == "accent"
+        else colors.get(part.role, (0.5, 0.5, 0.5))
+    )
     return Look((*map(float, rgb), float(mp.get("alpha", 1.0))), **params)

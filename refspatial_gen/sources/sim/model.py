@@ -18,8 +18,14 @@ from refspatial_gen.core.errors import DropUnit
 from refspatial_gen.sources.sim.layout import SceneDesc, StaticBox
 from refspatial_gen.sources.sim.looks import Look, floor_look, furniture_look, part_look
 
-GEOM_TYPES = {"box": mujoco.mjtGeom.mjGEOM_BOX, "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER, "sphere": mujoco.mjtGeom.mjGEOM_SPHERE,
-              "capsule": mujoco.mjtGeom.mjGEOM_CAPSULE, "ellipsoid": mujoco.mjtGeom.mjGEOM_ELLIPSOID, "mesh": mujoco.mjtGeom.mjGEOM_MESH}
+GEOM_TYPES = {
+    "box": mujoco.mjtGeom.mjGEOM_BOX,
+    "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER,
+    "sphere": mujoco.mjtGeom.mjGEOM_SPHERE,
+    "capsule": mujoco.mjtGeom.mjGEOM_CAPSULE,
+    "ellipsoid": mujoco.mjtGeom.mjGEOM_ELLIPSOID,
+    "mesh": mujoco.mjtGeom.mjGEOM_MESH,
+}
 HIDDEN_GROUP = 3  # collision-only geoms live in this group; renders switch it off
 WALL_HEIGHT = 2.6
 
@@ -58,11 +64,11 @@ def _inertial(geo: AssetGeometry) -> tuple[float, np.ndarray, np.ndarray, np.nda
     if mass <= 0:
         raise DropUnit("asset_degenerate", "object has no solid part")
     com = first / mass
-    I = second - mass * (np.dot(com, com) * np.eye(3) - np.outer(com, com))
+    inertia = second - mass * (np.dot(com, com) * np.eye(3) - np.outer(com, com))
     scale = max(0.02, mass) / mass
-    mass, I = mass * scale, I * scale
-    I = (I + I.T) / 2
-    w, V = np.linalg.eigh(I)
+    mass, inertia = mass * scale, inertia * scale
+    inertia = (inertia + inertia.T) / 2
+    w, V = np.linalg.eigh(inertia)
     if np.linalg.det(V) < 0:
         V[:, 0] *= -1
     return mass, com, np.maximum(w, 1e-8), quat_from_matrix(V)
@@ -89,8 +95,15 @@ class _Materials:
     def get(self, look: Look) -> str:
         """A material for `look`. Tiled textures use texuniform (size by world extent); UV-mapped ones must
         not: MuJoCo's texuniform ignores a mesh's texcoords, so a UV atlas would be sampled at one texel."""
-        key = (tuple(round(x, 5) for x in look.rgba), look.specular, look.shininess, look.reflectance, look.texture_key,
-               None if look.texture is None else id(look.texture), look.repeat)
+        key = (
+            tuple(round(x, 5) for x in look.rgba),
+            look.specular,
+            look.shininess,
+            look.reflectance,
+            look.texture_key,
+            None if look.texture is None else id(look.texture),
+            look.repeat,
+        )
         if key in self.mats:
             return self.mats[key]
         m = self.spec.add_material()
@@ -138,17 +151,21 @@ def room_statics(desc: SceneDesc) -> list[StaticBox]:
     if desc.walls:
         rx, ry = desc.room_half
         h = WALL_HEIGHT / 2
-        statics += [StaticBox("wall_back", np.array([0, ry + 0.05, h]), np.array([rx + 0.1, 0.05, h]), "wall"),
-                    StaticBox("wall_left", np.array([-rx - 0.05, 0, h]), np.array([0.05, ry + 0.1, h]), "wall"),
-                    StaticBox("wall_front", np.array([0, -ry - 0.05, h]), np.array([rx + 0.1, 0.05, h]), "wall"),
-                    StaticBox("wall_right", np.array([rx + 0.05, 0, h]), np.array([0.05, ry + 0.1, h]), "wall")]
+        statics += [
+            StaticBox("wall_back", np.array([0, ry + 0.05, h]), np.array([rx + 0.1, 0.05, h]), "wall"),
+            StaticBox("wall_left", np.array([-rx - 0.05, 0, h]), np.array([0.05, ry + 0.1, h]), "wall"),
+            StaticBox("wall_front", np.array([0, -ry - 0.05, h]), np.array([rx + 0.1, 0.05, h]), "wall"),
+            StaticBox("wall_right", np.array([rx + 0.05, 0, h]), np.array([0.05, ry + 0.1, h]), "wall"),
+        ]
     return statics
 
 
 def _lights(spec: mujoco.MjSpec, desc: SceneDesc) -> None:
     for L in desc.lights:
         li = spec.worldbody.add_light()
-        li.type = mujoco.mjtLightType.mjLIGHT_DIRECTIONAL if L.kind == "directional" else mujoco.mjtLightType.mjLIGHT_SPOT
+        li.type = (
+            mujoco.mjtLightType.mjLIGHT_DIRECTIONAL if L.kind == "directional" else mujoco.mjtLightType.mjLIGHT_SPOT
+        )
         li.pos, li.dir = [float(x) for x in L.pos], [float(x) for x in L.direction]
         li.diffuse = [float(x) for x in L.diffuse()]
         li.specular = [0.15 * L.intensity] * 3
@@ -158,7 +175,9 @@ def _lights(spec: mujoco.MjSpec, desc: SceneDesc) -> None:
             li.attenuation = [1.0, 0.0, 0.0]
 
 
-def build_model(desc: SceneDesc, catalog_materials: dict[str, dict[str, float]], cfg: dict[str, Any], n_views: int) -> SimModel:
+def build_model(
+    desc: SceneDesc, catalog_materials: dict[str, dict[str, float]], cfg: dict[str, Any], n_views: int
+) -> SimModel:
     spec = mujoco.MjSpec()
     spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
     spec.option.timestep = float(cfg.get("timestep", 0.002))

@@ -104,15 +104,22 @@ def render_views(sim: SimModel, cams: list[Camera]) -> list[RenderOut]:
             mujoco.mjr_readPixels(seg, None, rect, ctx)
             scn.flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = False
             scn.flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = False
-            segid = seg[..., 0].astype(np.int32) + seg[..., 1].astype(np.int32) * 256 + seg[..., 2].astype(np.int32) * 65536
+            segid = (
+                seg[..., 0].astype(np.int32) + seg[..., 1].astype(np.int32) * 256 + seg[..., 2].astype(np.int32) * 65536
+            )
             lut = np.zeros(scn.ngeom + 2, np.int32)
             for k in range(scn.ngeom):
                 g = scn.geoms[k]
                 if g.segid >= 0 and g.objtype == mujoco.mjtObj.mjOBJ_GEOM:
                     lut[g.segid + 1] = sim.geom_object[g.objid]
             inst = lut[np.clip(segid, 0, len(lut) - 1)]
-            outs.append(RenderOut(np.ascontiguousarray(rgb[::-1]), np.ascontiguousarray(depth[::-1].astype(np.float32)),
-                                  np.ascontiguousarray(inst[::-1])))
+            outs.append(
+                RenderOut(
+                    np.ascontiguousarray(rgb[::-1]),
+                    np.ascontiguousarray(depth[::-1].astype(np.float32)),
+                    np.ascontiguousarray(inst[::-1]),
+                )
+            )
         return outs
     finally:
         ctx.free()

@@ -8,14 +8,23 @@ cabinet top) get 3-9 objects each, and the other surfaces a few. Cameras aim at 
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from shapely import affinity
 
 from refspatial_gen.assets import Catalog
 from refspatial_gen.sources.sim import furniture as F
-from refspatial_gen.sources.sim.layout import CLEARANCE, DROP_GAP, LayoutBuilder, SceneDesc, Surface, appearance, footprint
+from refspatial_gen.sources.sim.layout import (
+    CLEARANCE,
+    DROP_GAP,
+    LayoutBuilder,
+    SceneDesc,
+    Surface,
+    appearance,
+    footprint,
+)
 
 Theme = Callable[[LayoutBuilder, Surface], tuple[list[Surface], list[Surface], Surface | None]]
 
@@ -31,7 +40,9 @@ def _side(rng) -> str:
     return "left" if rng.random() < 0.5 else "right"
 
 
-def _try(piece, b: LayoutBuilder, floor: Surface, wall: str, lo: float = -0.9, hi: float = 0.9, tries: int = 6) -> list[Surface]:
+def _try(
+    piece, b: LayoutBuilder, floor: Surface, wall: str, lo: float = -0.9, hi: float = 0.9, tries: int = 6
+) -> list[Surface]:
     """A wall piece at the first free position along the wall (furniture never overlaps)."""
     for _ in range(tries):
         out = piece(b, floor, wall, float(b.rng.uniform(lo, hi)))
@@ -46,11 +57,32 @@ def living(b: LayoutBuilder, floor: Surface):
     focus, other = list(seat), []
     if seat:
         s = seat[0]
-        ct = F.table(b, floor, "coffee_table", "the coffee table", s.center[0] + rng.normal(0, 0.1),
-                     s.center[1] - s.half[1] - 0.75, rng.uniform(0.4, 0.6), rng.uniform(0.25, 0.33), rng.uniform(0.4, 0.46), "table")
+        ct = F.table(
+            b,
+            floor,
+            "coffee_table",
+            "the coffee table",
+            s.center[0] + rng.normal(0, 0.1),
+            s.center[1] - s.half[1] - 0.75,
+            rng.uniform(0.4, 0.6),
+            rng.uniform(0.25, 0.33),
+            rng.uniform(0.4, 0.46),
+            "table",
+        )
         focus += [ct] if ct else []
         sx = s.center[0] + (1 if rng.random() < 0.5 else -1) * (s.half[0] + 0.5)
-        st = F.table(b, floor, "side_table", "the side table", sx, floor.half[1] - 0.3, 0.22, 0.22, rng.uniform(0.5, 0.62), "table")
+        st = F.table(
+            b,
+            floor,
+            "side_table",
+            "the side table",
+            sx,
+            floor.half[1] - 0.3,
+            0.22,
+            0.22,
+            rng.uniform(0.5, 0.62),
+            "table",
+        )
         focus += [st] if st else []
     other += _try(F.shelf_unit, b, floor, _side(rng), 0.0, 0.9)
     return focus, other, None
@@ -63,8 +95,18 @@ def bedroom(b: LayoutBuilder, floor: Surface):
     if bed:
         s = bed[0]
         sgn = 1 if rng.random() < 0.5 else -1
-        ns = F.table(b, floor, "nightstand", "the nightstand", s.center[0] + sgn * (s.half[0] + 0.34), floor.half[1] - 0.26,
-                     0.22, 0.2, rng.uniform(0.52, 0.62), "nightstand")
+        ns = F.table(
+            b,
+            floor,
+            "nightstand",
+            "the nightstand",
+            s.center[0] + sgn * (s.half[0] + 0.34),
+            floor.half[1] - 0.26,
+            0.22,
+            0.2,
+            rng.uniform(0.52, 0.62),
+            "nightstand",
+        )
         focus += [ns] if ns else []
     cab = _try(F.cabinet, b, floor, _side(rng), -0.2, 0.9)
     focus += cab if len(focus) < 2 else []
@@ -77,8 +119,17 @@ def bedroom(b: LayoutBuilder, floor: Surface):
 def kitchen(b: LayoutBuilder, floor: Surface):
     rng = b.rng
     focus = F.counter(b, floor, rng.uniform(-0.5, 0.5))
-    t = F.table(b, floor, "table", "the table", rng.uniform(-0.4, 0.4), rng.uniform(-0.5, 0.0), rng.uniform(0.45, 0.7),
-                rng.uniform(0.35, 0.45), rng.uniform(0.72, 0.78))
+    t = F.table(
+        b,
+        floor,
+        "table",
+        "the table",
+        rng.uniform(-0.4, 0.4),
+        rng.uniform(-0.5, 0.0),
+        rng.uniform(0.45, 0.7),
+        rng.uniform(0.35, 0.45),
+        rng.uniform(0.72, 0.78),
+    )
     focus += [t] if t else []
     other = _try(F.shelf_unit, b, floor, _side(rng)) if rng.random() < 0.5 else []
     return focus, other, t
@@ -87,8 +138,18 @@ def kitchen(b: LayoutBuilder, floor: Surface):
 def office(b: LayoutBuilder, floor: Surface):
     rng = b.rng
     along = rng.uniform(-0.5, 0.1)
-    focus = F.wall_table(b, floor, "back", along, rng.uniform(1.1, 1.5), rng.uniform(0.6, 0.75), rng.uniform(0.72, 0.76),
-                         "desk", "the desk", "desk")
+    focus = F.wall_table(
+        b,
+        floor,
+        "back",
+        along,
+        rng.uniform(1.1, 1.5),
+        rng.uniform(0.6, 0.75),
+        rng.uniform(0.72, 0.76),
+        "desk",
+        "the desk",
+        "desk",
+    )
     shelves = _try(F.shelf_unit, b, floor, "back") or _try(F.shelf_unit, b, floor, _side(rng), 0.0, 0.9)
     focus += shelves[:2]
     other = shelves[2:] + _try(F.cabinet, b, floor, _side(rng))
@@ -107,13 +168,19 @@ def _chairs(b: LayoutBuilder, floor: Surface, t: Surface, k: int) -> None:
         geo, color, rgb, acc, mat = b.make(cat)
         d = np.array([[1, 0], [-1, 0], [0, 1], [0, -1]][side], float)
         off = (t.half[0] if side < 2 else t.half[1]) + 0.27 + rng.uniform(0.0, 0.2)
-        xy = t.center + d * off + (np.array([0, rng.uniform(-0.2, 0.2)]) if side < 2 else np.array([rng.uniform(-0.3, 0.3), 0]))
+        xy = (
+            t.center
+            + d * off
+            + (np.array([0, rng.uniform(-0.2, 0.2)]) if side < 2 else np.array([rng.uniform(-0.3, 0.3), 0]))
+        )
         yaw = float(np.arctan2(-d[1], -d[0]) + rng.normal(0, 0.15))
         fp = affinity.translate(footprint(geo, yaw), xy[0], xy[1])
         if not floor.rect(0.05).contains(fp) or any(fp.distance(o) < CLEARANCE for o in floor.fps):
             continue
         floor.fps.append(fp)
-        b._add(cat, geo, color, rgb, acc, mat, np.array([xy[0], xy[1], -geo.bounds()[0][2] + DROP_GAP]), yaw, "floor", fp)
+        b._add(
+            cat, geo, color, rgb, acc, mat, np.array([xy[0], xy[1], -geo.bounds()[0][2] + DROP_GAP]), yaw, "floor", fp
+        )
 
 
 def room_layout(catalog: Catalog, rng: np.random.Generator, cfg: dict[str, Any]) -> SceneDesc:

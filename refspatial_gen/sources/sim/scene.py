@@ -63,14 +63,28 @@ class RenderScene:
                     tex_files[key] = f"textures/t{len(tex_files):03d}.png"
                     Image.fromarray(np.asarray(m.look.texture)).save(folder / tex_files[key])
                 look["texture_file"] = tex_files[key]
-            items.append({"name": m.name, "instance_id": m.instance_id, "arrays": i, "has_uv": m.uv is not None,
-                          "world_from_local": m.world_from_local.tolist(), "look": look})
+            items.append(
+                {
+                    "name": m.name,
+                    "instance_id": m.instance_id,
+                    "arrays": i,
+                    "has_uv": m.uv is not None,
+                    "world_from_local": m.world_from_local.tolist(),
+                    "look": look,
+                }
+            )
         np.savez_compressed(folder / "meshes.npz", **arrays)
         import json
 
-        doc = {"schema": "refspatial-render-scene/1", "units": "metres, z up; cameras OpenCV (x right, y down, z forward)",
-               "meshes": items, "lights": self.lights, "ambient": self.ambient, "meta": self.meta,
-               "cameras": [c.to_json() for c in self.cameras]}
+        doc = {
+            "schema": "refspatial-render-scene/1",
+            "units": "metres, z up; cameras OpenCV (x right, y down, z forward)",
+            "meshes": items,
+            "lights": self.lights,
+            "ambient": self.ambient,
+            "meta": self.meta,
+            "cameras": [c.to_json() for c in self.cameras],
+        }
         (folder / "scene.json").write_text(json.dumps(doc, indent=1))
         return folder
 
@@ -108,7 +122,9 @@ class SettledScene:
         if self.desc.floor:
             hx, hy = self.desc.room_half + 2
             v = np.array([[-hx, -hy, 0], [hx, -hy, 0], [hx, hy, 0], [-hx, hy, 0]], float)
-            items.append(MeshItem("floor", 0, v, np.array([[0, 1, 2], [0, 2, 3]]), v[:, :2].copy(), np.eye(4), floor_look(ap)))
+            items.append(
+                MeshItem("floor", 0, v, np.array([[0, 1, 2], [0, 2, 3]]), v[:, :2].copy(), np.eye(4), floor_look(ap))
+            )
         for sb in room_statics(self.desc):
             v, f, uv = _box_mesh(sb.half)
             items.append(MeshItem(sb.name, 0, v, f, uv, _pose(np.eye(3), sb.center), furniture_look(sb.look, ap)))
@@ -119,7 +135,21 @@ class SettledScene:
                     continue
                 tm = part.trimesh()
                 uv = part.uv if (part.uv is not None and part.kind == "mesh") else None
-                items.append(MeshItem(f"{o.key}_g{j}", k + 1, np.asarray(tm.vertices, float), np.asarray(tm.faces), uv,
-                                      _pose(R, p), part_look(o, part, self.colors, self.materials)))
-        return RenderScene(items, [L.to_json() for L in self.desc.lights], cams, float(ap.get("ambient", 0.3)),
-                           {"layout": self.desc.kind, "n_objects": len(self.desc.objects)})
+                items.append(
+                    MeshItem(
+                        f"{o.key}_g{j}",
+                        k + 1,
+                        np.asarray(tm.vertices, float),
+                        np.asarray(tm.faces),
+                        uv,
+                        _pose(R, p),
+                        part_look(o, part, self.colors, self.materials),
+                    )
+                )
+        return RenderScene(
+            items,
+            [L.to_json() for L in self.desc.lights],
+            cams,
+            float(ap.get("ambient", 0.3)),
+            {"layout": self.desc.kind, "n_objects": len(self.desc.objects)},
+        )

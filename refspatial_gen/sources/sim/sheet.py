@@ -13,7 +13,14 @@ import numpy as np
 
 from refspatial_gen.core.camera import Camera, look_at
 
-VIEWS = [("+x", [1, 0, 0]), ("-x", [-1, 0, 0]), ("+y", [0, 1, 0]), ("-y", [0, -1, 0]), ("+z", [0, 0, 1]), ("-z", [0, 0, -1])]
+VIEWS = [
+    ("+x", [1, 0, 0]),
+    ("-x", [-1, 0, 0]),
+    ("+y", [0, 1, 0]),
+    ("-y", [0, -1, 0]),
+    ("+z", [0, 0, 1]),
+    ("-z", [0, 0, -1]),
+]
 
 
 def _views(centre: np.ndarray, size: float, px: int) -> list[Camera]:
@@ -46,8 +53,9 @@ def _draw_front(img, cam: Camera, centre: np.ndarray, front: np.ndarray | None, 
         d.line([x1, y1, x1 - 10 * np.cos(a + s), y1 - 10 * np.sin(a + s)], fill=(255, 40, 200), width=3)
 
 
-def asset_sheet(out: str | Path, catalog: str | list | None = None, names: list[str] | None = None, px: int = 160,
-                seed: int = 0) -> dict[str, Any]:
+def asset_sheet(
+    out: str | Path, catalog: str | list | None = None, names: list[str] | None = None, px: int = 160, seed: int = 0
+) -> dict[str, Any]:
     """Render the sheet; one row per category: six views, then its name, label, size and front phrase."""
     from PIL import Image, ImageDraw
 
@@ -74,9 +82,13 @@ def asset_sheet(out: str | Path, catalog: str | list | None = None, names: list[
             _draw_front(im, cam, centre, front, size, VIEWS[k][0])
             row.paste(im, (k * px, 0))
         d = ImageDraw.Draw(row)
-        txt = [n, f"label: {c.label}", "size: " + " x ".join(f"{x:.2f}" for x in hi - lo) + " m",
-               f"front: {c.front_phrase}" if c.front is not None else "front: (none)",
-               "" if front is None else "  " + ", ".join(f"{x:+.2f}" for x in front)]
+        txt = [
+            n,
+            f"label: {c.label}",
+            "size: " + " x ".join(f"{x:.2f}" for x in hi - lo) + " m",
+            f"front: {c.front_phrase}" if c.front is not None else "front: (none)",
+            "" if front is None else "  " + ", ".join(f"{x:+.2f}" for x in front),
+        ]
         for i, t in enumerate(txt):
             d.text((6 * px + 4, 6 + 14 * i), t[:26], fill=(255, 255, 255))
         rows.append(row)

@@ -32,10 +32,15 @@ def _weights_ok(v: Any) -> str | None:
 def _range(lo: float, hi: float, what: str, integer: bool = False):
     def check(v: Any) -> str | None:
         num = (int,) if integer else (int, float)
-        if not (isinstance(v, list) and len(v) == 2 and all(isinstance(x, num) and not isinstance(x, bool) for x in v)
-                and lo <= v[0] <= v[1] <= hi):
+        if not (
+            isinstance(v, list)
+            and len(v) == 2
+            and all(isinstance(x, num) and not isinstance(x, bool) for x in v)
+            and lo <= v[0] <= v[1] <= hi
+        ):
             return f"must be [lo, hi] {what} with {lo} <= lo <= hi <= {hi}"
         return None
+
     return check
 
 
@@ -56,8 +61,12 @@ CONFIG_FIELDS: dict[str, Field] = {
     "scenes": Field(int, default=10, min=1, doc="number of scenes when the run does not say"),
     "layouts": Field(dict, default={"tabletop": 0.5, "room": 0.5}, check=_weights_ok, doc="layout kind -> weight"),
     "room_themes": Field(list, default=[], check=_themes_ok, doc="room themes to draw from (default: all)"),
-    "objects_per_surface": Field(list, default=[3, 9], check=_range(0, 30, "objects", True),
-                                 doc="objects on each focus surface (RefSpatial: 3-9 per tabletop)"),
+    "objects_per_surface": Field(
+        list,
+        default=[3, 9],
+        check=_range(0, 30, "objects", True),
+        doc="objects on each focus surface (RefSpatial: 3-9 per tabletop)",
+    ),
     "min_objects": Field(int, default=3, min=1, max=40, doc="movable objects on a tabletop, at least"),
     "max_objects": Field(int, default=24, min=1, max=40, doc="movable objects per scene, at most"),
     "width": Field(int, default=640, min=32, max=4096),
@@ -65,23 +74,38 @@ CONFIG_FIELDS: dict[str, Field] = {
     "views": Field(int, default=2, min=1, max=8, doc="cameras (frames) per scene"),
     "fovy_deg": Field(list, default=[45.0, 60.0], check=_range(1, 169, "degrees"), doc="vertical field of view range"),
     "pitch_deg": Field(list, default=[30.0, 60.0], check=_range(0, 89, "degrees"), doc="camera pitch below horizontal"),
-    "camera_height": Field(list, default=[0.3, 0.8], check=_range(0.05, 5, "metres"), doc="tabletop eye above the table"),
+    "camera_height": Field(
+        list, default=[0.3, 0.8], check=_range(0.05, 5, "metres"), doc="tabletop eye above the table"
+    ),
     "room_eye_height": Field(list, default=[1.2, 1.8], check=_range(0.3, 3, "metres"), doc="room eye above the floor"),
     "view_spread_deg": Field(float, default=70.0, min=0, max=180, doc="azimuth step between views"),
     "renderer": Field(str, default="mujoco", check=_renderer_ok, doc="renderer by name (see sources/sim/renderers.py)"),
     "blender": Field(dict, default={}, doc="Blender renderer settings (sources/sim/blender_render.py SETTINGS)"),
     "lights": Field(list, default=[1, 3], check=_range(1, 8, "lights", True), doc="number of lights"),
-    "light_intensity": Field(list, default=[0.6, 1.4], check=_range(0.0, 10.0, "x"), doc="per-light intensity multiplier"),
+    "light_intensity": Field(
+        list, default=[0.6, 1.4], check=_range(0.0, 10.0, "x"), doc="per-light intensity multiplier"
+    ),
     "shadows": Field(bool, default=True, doc="the key light casts shadows"),
     "shadow_size": Field(int, default=2048, min=64, max=8192, doc="shadow map size"),
-    "catalog": Field((str, list), default="", doc="asset catalog YAML, or a list merged in order; relative to the recipe"),
-    "external_prob": Field(float, default=None, min=0, max=1,
-                           doc="chance that a tabletop object is an external mesh (default 0.5 if the catalog has any)"),
-    "repeat_prob": Field(float, default=0.35, min=0, max=1, doc="chance to repeat a category already in the scene (new colour)"),
+    "catalog": Field(
+        (str, list), default="", doc="asset catalog YAML, or a list merged in order; relative to the recipe"
+    ),
+    "external_prob": Field(
+        float,
+        default=None,
+        min=0,
+        max=1,
+        doc="chance that a tabletop object is an external mesh (default 0.5 if the catalog has any)",
+    ),
+    "repeat_prob": Field(
+        float, default=0.35, min=0, max=1, doc="chance to repeat a category already in the scene (new colour)"
+    ),
     "stack_prob": Field(float, default=0.2, min=0, max=1),
     "inside_prob": Field(float, default=0.3, min=0, max=1),
     "edge_prob": Field(float, default=0.3, min=0, max=1, doc="chance to place an object near an edge or corner"),
-    "face_prob": Field(float, default=0.35, min=0, max=1, doc="chance that an object with a front faces another object"),
+    "face_prob": Field(
+        float, default=0.35, min=0, max=1, doc="chance that an object with a front faces another object"
+    ),
     "settle_max_steps": Field(int, default=3000, min=100, doc="physics step cap; unsettled scenes are dropped"),
     "settle_lin_vel": Field(float, default=0.005, min=0, doc="m/s: at rest below this"),
     "settle_ang_vel": Field(float, default=0.05, min=0, doc="rad/s: at rest below this"),
@@ -122,8 +146,14 @@ def check_config(cfg: dict[str, Any], file: str, lines: dict, path: tuple, error
     files = [str(DEFAULT_CATALOG) if p == "builtin" else p for p in catalog_paths(raw, Path(file).resolve().parent)]
     for f in files:
         if not Path(f).is_file():
-            errors.append(RecipeError(file, where, f"catalog {f} not found (paths are relative to the recipe's folder; "
-                                                   "write one with `refspatial-gen assets import DIR --out FILE`)"))
+            errors.append(
+                RecipeError(
+                    file,
+                    where,
+                    f"catalog {f} not found (paths are relative to the recipe's folder; "
+                    "write one with `refspatial-gen assets import DIR --out FILE`)",
+                )
+            )
     if len(errors) or not files and raw:
         return
     cfg["catalog"] = files if len(files) != 1 else files[0]
@@ -137,13 +167,20 @@ def check_config(cfg: dict[str, Any], file: str, lines: dict, path: tuple, error
         return
     ep = cfg.get("external_prob")
     if ep is not None and ep > 0 and not cat.external_names():
-        errors.append(RecipeError(file, line_of(lines, path + ("external_prob",)),
-                                  f"external_prob is {ep} but the catalog {cat.path} has no external meshes "
-                                  "(import some with `refspatial-gen assets import DIR --out my_catalog.yaml`)"))
+        errors.append(
+            RecipeError(
+                file,
+                line_of(lines, path + ("external_prob",)),
+                f"external_prob is {ep} but the catalog {cat.path} has no external meshes "
+                "(import some with `refspatial-gen assets import DIR --out my_catalog.yaml`)",
+            )
+        )
     _check_blender(cfg, file, lines, path, errors)
     lo, hi = cfg.get("min_objects", 3), cfg.get("max_objects", 24)
     if lo > hi:
-        errors.append(RecipeError(file, line_of(lines, path + ("min_objects",)), f"min_objects {lo} > max_objects {hi}"))
+        errors.append(
+            RecipeError(file, line_of(lines, path + ("min_objects",)), f"min_objects {lo} > max_objects {hi}")
+        )
 
 
 def _check_blender(cfg: dict[str, Any], file: str, lines: dict, path: tuple, errors: list[RecipeError]) -> None:
@@ -179,14 +216,19 @@ def _root_support(desc, o) -> str:
     return o.support
 
 
-def generate(unit_key: str, rng: np.random.Generator, config: dict[str, Any], timings: dict[str, float] | None = None,
-             keep_scene: bool = False):
+def generate(
+    unit_key: str,
+    rng: np.random.Generator,
+    config: dict[str, Any],
+    timings: dict[str, float] | None = None,
+    keep_scene: bool = False,
+):
     """Frames for one scene (and, with keep_scene, the SceneDesc and settled SimModel for export)."""
     from refspatial_gen.assets import load_catalog
     from refspatial_gen.core.geometry import Box3D
     from refspatial_gen.sources.sim.cameras import sample_cameras
-    from refspatial_gen.sources.sim.frames import make_frames, scene_boxes
     from refspatial_gen.sources.sim.finish import draw_finishes
+    from refspatial_gen.sources.sim.frames import make_frames, scene_boxes
     from refspatial_gen.sources.sim.lighting import sample_lights
     from refspatial_gen.sources.sim.physics import build_model, settle
     from refspatial_gen.sources.sim.renderers import get_renderer
@@ -218,11 +260,22 @@ def generate(unit_key: str, rng: np.random.Generator, config: dict[str, Any], ti
             raise DropUnit("object_escaped", f"{desc.objects[k].category.name} left the scene")
     target, support_z = _focus_target(desc, boxes)
     blockers = [b for b, _ in boxes] + [Box3D(sb.center, 2 * sb.half, np.eye(3)) for sb in desc.statics]
-    cams = sample_cameras(kind, target, support_z, blockers, rng, cfg, int(cfg["views"]), desc.room_half,
-                          np.array([b.center for b, _ in boxes]))
+    cams = sample_cameras(
+        kind,
+        target,
+        support_z,
+        blockers,
+        rng,
+        cfg,
+        int(cfg["views"]),
+        desc.room_half,
+        np.array([b.center for b, _ in boxes]),
+    )
     if not cams:
         raise DropUnit("no_camera_pose", "every sampled camera was inside an object")
-    renders = get_renderer(cfg["renderer"], cfg).render(SettledScene(desc, sim, catalog.colors, catalog.materials), cams)
+    renders = get_renderer(cfg["renderer"], cfg).render(
+        SettledScene(desc, sim, catalog.colors, catalog.materials), cams
+    )
     t3 = time.perf_counter()
     meta = {"layout": kind, "settle_steps": int(info["steps"]), "n_objects": len(desc.objects)}
     frames = make_frames(unit_key, desc, sim, cams, renders, boxes, meta)
@@ -231,7 +284,9 @@ def generate(unit_key: str, rng: np.random.Generator, config: dict[str, Any], ti
     frames = [f for f in frames if len(f.objects) >= int(cfg["min_visible_objects"])]
     t4 = time.perf_counter()
     if not frames:
-        raise DropUnit("too_few_visible_objects", f"fewer than {cfg['min_visible_objects']} objects visible in every view")
+        raise DropUnit(
+            "too_few_visible_objects", f"fewer than {cfg['min_visible_objects']} objects visible in every view"
+        )
     for f in frames:
         f.validate()
     for k, v in (("layout", t1 - t0), ("physics", t2 - t1), ("render", t3 - t2), ("frames", t4 - t3)):

@@ -61,7 +61,12 @@ def export_usd(desc: SceneDesc, sim: SimModel, frames: list[Frame], path: str | 
     for sb in desc.statics:
         b = trimesh.creation.box(extents=2 * sb.half)
         b.apply_translation(sb.center)
-        _mesh(stage, f"/Scene/Room/{_name(sb.name)}", b, (0.55, 0.4, 0.28) if sb.look in ("table", "shelf") else (0.8, 0.8, 0.8))
+        _mesh(
+            stage,
+            f"/Scene/Room/{_name(sb.name)}",
+            b,
+            (0.55, 0.4, 0.28) if sb.look in ("table", "shelf") else (0.8, 0.8, 0.8),
+        )
     UsdGeom.Xform.Define(stage, "/Scene/Objects")
     try:
         from pxr import UsdSemantics
@@ -83,7 +88,13 @@ def export_usd(desc: SceneDesc, sim: SimModel, frames: list[Frame], path: str | 
             labels = UsdSemantics.LabelsAPI.Apply(prim, "class")
             labels.CreateLabelsAttr([o.category.label])
         for j, part in enumerate(p_ for p_ in o.geometry.parts if p_.visual):
-            rgb = o.rgb if part.role == "body" else o.accent_rgb if part.role == "accent" else colors.get(part.role, (0.5, 0.5, 0.5))
+            rgb = (
+                o.rgb
+                if part.role == "body"
+                else o.accent_rgb
+                if part.role == "accent"
+                else colors.get(part.role, (0.5, 0.5, 0.5))
+            )
             _mesh(stage, f"{xp}/part{j}", part.trimesh(), rgb)
     UsdGeom.Xform.Define(stage, "/Scene/Cameras")
     for f in frames:
