@@ -1,4 +1,4 @@
-""""between" means on the segment joining the two anchors, on the ground plane AND in the image (issue 15).
+""" "between" means on the segment joining the two anchors, on the ground plane AND in the image (issue 15).
 
 The audit's two wrong YCB answers rebuilt as toy scenes (camera at y = -1 looking along +y, 0.6 m above
 the table; see test_graph_helpers): the ground-plane corridor alone said both objects were between their

@@ -47,13 +47,18 @@ RELATION_FORMS: dict[str, dict[str, str]] = {
         "adj": "at the back",
     },
     "above_world": {
-        "prep": "{physically above|physically higher than|above, in the real world,|above, from the real-world perspective,}",
+        "prep": (
+            "{physically above|physically higher than|above, in the real world,"
+            "|above, from the real-world perspective,}"
+        ),
         "cmp": "higher up in the real world",
         "sup": "physically highest",
         "adj": "higher up",
     },
     "below_world": {
-        "prep": "{physically below|physically lower than|below, in the real world,|below, from the real-world perspective,}",
+        "prep": (
+            "{physically below|physically lower than|below, in the real world,|below, from the real-world perspective,}"
+        ),
         "cmp": "lower down in the real world",
         "sup": "physically lowest",
         "adj": "lower down",
