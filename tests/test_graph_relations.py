@@ -211,7 +211,9 @@ def test_rotation_vertical_is_view_relative():
         assert abs(recompute_quantity(world, "rotation_vertical", oid, None) - fact.value) < 1e-6
 
 
-@pytest.mark.parametrize("a_xy, expected", [((0.0, 0.0), True), ((0.45, 0.0), False), ((0.0, 0.25), None)])
+@pytest.mark.parametrize(
+    "a_xy, expected", [((0.0, 0.0), True), ((0.45, 0.0), False), ((0.0, 0.2), None), ((0.25, 0.0), None)]
+)
 def test_between(a_xy, expected):
     fr, g = scene(
         ("can", "red", box(*a_xy, (0.06, 0.06, 0.12))), ("box", "blue", box(-0.3, 0.0)), ("box", "green", box(0.3, 0.0))

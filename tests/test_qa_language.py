@@ -297,3 +297,54 @@ def test_linter_runs_on_template_files(tmp_path):
     )
     got = sorted((e.line, e.message[:20]) for e in lint_file(p))
     assert [g[0] for g in got] == [8, 9], got
+
+
+def _expansions(seq) -> list[str]:
+    """Every text a parsed variant can render (optional parts with and without), placeholders as {name}."""
+    from refspatial_gen.qa.text import Alt, Lit, Opt, Slot
+
+    outs = [""]
+    for p in seq.parts:
+        if isinstance(p, Lit):
+            alts = [p.text]
+        elif isinstance(p, Slot):
+            alts = ["{" + p.name + "}"]
+        elif isinstance(p, Alt):
+            alts = [x for o in p.options for x in _expansions(o)]
+        else:
+            assert isinstance(p, Opt)
+            alts = ["", *_expansions(p.body)]
+        outs = [o + a for o in outs for a in alts]
+    return outs
+
+
+@pytest.mark.parametrize("rel", ["above_world", "below_world", "above_image", "below_image"])
+def test_above_and_below_always_say_image_or_real_world(rel):
+    """Audit (issue 15): 'Is the glass above the camera?' was asked of the image plane and read in the world.
+    Every wording of the forms that yes/no, choice and marked-choice questions use ("prep" and the relative
+    clause built from it, "cmp", the world "sup", "ord") names its frame of reference in every expansion."""
+    from refspatial_gen.qa.text import parse
+
+    frame = r"in the image|image's perspective|of the image" if rel.endswith("image") else r"real.world|physically"
+    forms = lexicon.RELATION_FORMS[rel]
+    for form in ("prep", "cmp", "ord", "sup" if rel.endswith("world") else None):
+        if form is None or form not in forms:
+            continue
+        for text in _expansions(parse(forms[form])):
+            assert re.search(frame, text), (rel, form, text)
+
+
+def test_depth_questions_always_say_from_the_camera():
+    """Audit (issue 15): 'Measure the depth of the cabinet.' reads as its front-to-back size. Every
+    expansion of every depth template names the camera (or viewer)."""
+    from refspatial_gen.qa.templates import load_template_file
+
+    checked = 0
+    for t in load_template_file("recipes/templates/quantitative.yaml"):
+        if not t.name.split("/")[-1].startswith("depth"):
+            continue
+        for v in t.texts:
+            for text in _expansions(v):
+                assert re.search(r"camera|viewer", text), (t.name, text)
+                checked += 1
+    assert checked > 10

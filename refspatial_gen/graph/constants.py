@@ -36,8 +36,8 @@ class Thresholds:
     # containment / between
     inside_fraction: float  # > this fraction of A's volume inside B's box = inside
     inside_band: float  # undecided within +- this of inside_fraction
-    between_t_margin: float  # fraction of the B-C segment kept clear at each end
-    between_corridor: float  # corridor half-width as a fraction of |BC| (plus the anchors' half widths)
+    between_t_margin: float  # fraction of the B-C segment kept clear at each end (t in (m, 1 - m) is between)
+    between_corridor: float  # distance from the B-C line, as a fraction of |BC|, below which A is on the segment
     # orientation
     rotation_margin: float  # rad, below this the turn direction is undecided
     facing_cone: float  # rad, half-angle of the facing cone
@@ -64,6 +64,10 @@ class Thresholds:
     # runner-up; below either the object gets no colour word (counted as colour_unnamed_margin)
     colour_min_share: float = 0.5
     colour_margin: float = 0.2
+    # between (graph/relations/containment.py): undecided bands outside the decided region, so "not
+    # between" is only said clearly off the segment (t < m - band, t > 1 - m + band, or off by corridor + band)
+    between_t_band: float = 0.10
+    between_corridor_band: float = 0.15
 
     def to_json(self) -> dict[str, float]:
         return {k: round(float(v), 6) for k, v in sorted(asdict(self).items())}
@@ -88,8 +92,8 @@ TABLETOP = Thresholds(
     quantity_tolerance=0.15,
     inside_fraction=0.30,
     inside_band=0.10,
-    between_t_margin=0.10,
-    between_corridor=0.35,
+    between_t_margin=0.15,
+    between_corridor=0.25,
     rotation_margin=0.035,
     facing_cone=0.5236,
     facing_margin=0.0873,
@@ -129,8 +133,8 @@ ROOM = Thresholds(
     quantity_tolerance=0.15,
     inside_fraction=0.30,
     inside_band=0.10,
-    between_t_margin=0.10,
-    between_corridor=0.35,
+    between_t_margin=0.15,
+    between_corridor=0.25,
     rotation_margin=0.035,
     facing_cone=0.5236,
     facing_margin=0.0873,

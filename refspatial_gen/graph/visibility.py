@@ -6,8 +6,9 @@ sliver nobody would notice, or that a photo's person was lifted 3.7 m tall. An o
 visibility floor keeps its place in the scene (it still counts when "the leftmost cup" or "how many" is
 decided: qa/faint.py) but gets no phrase and no answer point, so it is never named, marked, offered as an
 option or pointed at. An object whose size its category cannot vouch for (truth/sizes.py), or any object
-of a frame whose metric scale is unverified, gets `metric: False`: no distance, size or height value and
-no size comparison is asked about it.
+of a frame whose metric scale is unverified, or on a photo an object cut by the image border or hidden
+in part by an object in front, gets `metric: False`: no distance, size or height value and no size
+comparison is asked about it.
 
 Recipe (`graph: truth:`, every key optional; docs/quality.md has the measurements behind the defaults):
   min_visible_px        visible mask pixels an object needs (default 150)
@@ -60,6 +61,9 @@ TRUTH_FIELDS: dict[str, Field] = {
 # reasons (graph.meta["truth"] keys, node attribute "below_floor")
 FEW_PIXELS, LOW_FRACTION, OUT_OF_VIEW = "below_floor_pixels", "below_floor_fraction", "below_floor_border"
 SCALE_UNVERIFIED = "metric_scale_unverified"
+CUT_BY_BORDER = "cut_by_border"  # photos: the mask reaches the image border, the object goes on outside
+OCCLUDED = "occluded_in_front"  # photos: another object in front hides part of it (its foot)
+BORDER_PX = 3  # mask pixels in the outer BORDER_PX rows/columns (within 2 px of the edge) touch the border
 GRID = 12  # points per box axis for the in-view share (share error <= 1/24 for a border cut)
 
 
@@ -136,6 +140,22 @@ def floor_reasons(geom: Any, floor: Floor) -> list[str | None]:
     return out
 
 
+def partly_seen(obj: Any) -> str | None:
+    """Why a photo's object is only partly seen, or None: its mask touches the image border (within
+    BORDER_PX) or the depth estimator found it standing behind another object that hides its foot. Its
+    lifted box is then a piece of the object (a bench cut by the frame judged smaller than an oven, an
+    elephant half under water 1.11 m tall: audit, issue 15), so no size or metric claim rests on it."""
+    if obj.mask is not None and obj.mask.area:
+        m = obj.mask.decode()
+        b = BORDER_PX
+        if m[:b].any() or m[-b:].any() or m[:, :b].any() or m[:, -b:].any():
+            return CUT_BY_BORDER
+    prov = obj.provenance or {}
+    if prov.get("behind") or str(prov.get("contact", "")).startswith("behind:"):
+        return OCCLUDED
+    return None
+
+
 def metric_reasons(geom: Any, floor: Floor) -> list[str | None]:
     """Per object position: why no metric or size question may be asked about it, or None.
 
@@ -146,8 +166,13 @@ def metric_reasons(geom: Any, floor: Floor) -> list[str | None]:
     scale = geom.frame.meta.get("metric_scale")
     if isinstance(scale, dict) and scale.get("reliable") is False:
         return [SCALE_UNVERIFIED] * geom.n
+    photo = isinstance(scale, dict)  # an estimated scale (photos): only wholly seen objects are measured
     out: list[str | None] = []
     for i, c in enumerate(geom.categories):
+        partial = partly_seen(geom.frame.objects[i]) if photo else None
+        if partial is not None:
+            out.append(partial)
+            continue
         size = (float(geom.width[i]), float(geom.width[i]), float(geom.height[i]))
         out.append(
             check_size(c, size, dims=("height", "extent"), tolerance=floor.size_tolerance, lower_bounds=("extent",))

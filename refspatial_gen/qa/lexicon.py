@@ -15,6 +15,8 @@ import yaml
 
 # relation id -> form -> text. Forms: prep ("A is <prep> B"), cmp ("which is <cmp>"), sup ("the <sup> X"),
 # ord ("the second X <ord>"), noun (a name for measured quantities).
+# above/below always say which: "in the image" or "in the real world" ("physically"); unqualified, a person
+# reads "is the glass above the camera?" either way (audit, issue 15).
 RELATION_FORMS: dict[str, dict[str, str]] = {
     "left": {
         "prep": "{to the left of|left of|on the left side of}",
@@ -45,29 +47,34 @@ RELATION_FORMS: dict[str, dict[str, str]] = {
         "adj": "at the back",
     },
     "above_world": {
-        "prep": "{above|higher than} [, from the real-world perspective,]",
+        "prep": (
+            "{physically above|physically higher than|above, in the real world,"
+            "|above, from the real-world perspective,}"
+        ),
         "cmp": "higher up in the real world",
-        "sup": "highest [in the real world]",
+        "sup": "physically highest",
         "adj": "higher up",
     },
     "below_world": {
-        "prep": "{below|lower than} [, from the real-world perspective,]",
+        "prep": (
+            "{physically below|physically lower than|below, in the real world,|below, from the real-world perspective,}"
+        ),
         "cmp": "lower down in the real world",
-        "sup": "lowest [in the real world]",
+        "sup": "physically lowest",
         "adj": "lower down",
     },
     "above_image": {
-        "prep": "above [, from the image's perspective,]",
+        "prep": "{higher in the image than|above, in the image,|above, from the image's perspective,}",
         "cmp": "higher in the image",
         "sup": "topmost [in the image]",
-        "ord": "from the top [of the image]",
+        "ord": "from the top of the image",
         "adj": "higher in the image",
     },
     "below_image": {
-        "prep": "below [, from the image's perspective,]",
+        "prep": "{lower in the image than|below, in the image,|below, from the image's perspective,}",
         "cmp": "lower in the image",
         "sup": "bottommost [in the image]",
-        "ord": "from the bottom [of the image]",
+        "ord": "from the bottom of the image",
         "adj": "lower in the image",
     },
     "tall": {"prep": "taller than", "cmp": "taller", "sup": "tallest", "adj": "tall"},

@@ -154,8 +154,17 @@ def _metric(qa: QAPair, frame: Frame, named: set[int], objs: dict[int, Any], tol
             "whose metric scale is unverified"
         ]
     out = []
+    H, W = frame.camera.height, frame.camera.width
     for i in sorted(named):
         o = objs[i]
+        if isinstance(scale, dict):  # a photo: the object must be wholly seen (graph/visibility.partly_seen)
+            ys, xs = np.nonzero(o.mask.decode()) if o.mask is not None else (np.zeros(0), np.zeros(0))
+            if len(xs) and (xs.min() <= 2 or ys.min() <= 2 or xs.max() >= W - 3 or ys.max() >= H - 3):
+                out.append(f"metric or size question names object {i} ({o.category}): its mask reaches the border")
+                continue
+            if (o.provenance or {}).get("behind") or str((o.provenance or {}).get("contact", "")).startswith("behind"):
+                out.append(f"metric or size question names object {i} ({o.category}): it stands behind an occluder")
+                continue
         why = check_size(
             o.category, _size(o.box), dims=("height", "extent"), tolerance=tol + 0.02, lower_bounds=("extent",)
         )

@@ -58,6 +58,13 @@ class World:
     def holds(self, rel: str, *args: Any) -> bool:
         from refspatial_gen.graph.relations import evaluate
 
+        if rel == "between":  # the verifier's own rule (qa/verify_between.py), not the generator's arrays
+            from refspatial_gen.qa.verify_between import between_holds
+
+            h = between_holds(self, *(int(x) for x in args))
+            if h is None:
+                raise Undecided(f"between{tuple(args)} is inside its margin")
+            return h
         f = evaluate(self.geom, rel, *args)
         if f.holds is None:
             raise Undecided(f"{rel}{tuple(args)} is inside its margin (value {f.value:.4f}, margin {f.margin:.4f})")

@@ -33,6 +33,7 @@ if TYPE_CHECKING:
 
 G = ("gravity",)
 MIN_BETWEEN_SPAN = 0.05  # m; anchors closer than this span no "between" region
+MIN_BETWEEN_PX = 8.0  # px; anchors closer than this in the image decide nothing there (undecided)
 
 
 def _inside(geom: SceneGeom) -> Matrices:
@@ -54,30 +55,54 @@ def _inside(geom: SceneGeom) -> Matrices:
     return cached(geom, "contain:inside", f)
 
 
-def between_arrays(xy: np.ndarray, ids: np.ndarray, categories: list[str], dist: np.ndarray, th: Any) -> Any:
+def segment_position(
+    xy: np.ndarray, B: np.ndarray, C: np.ndarray, th: Any, min_span: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(t, yes, no) of every object against every anchor pair p in one plane: t[p, a] the position of a's
+    projection along B[p] -> C[p] (0 at B, 1 at C); yes where a lies on the segment (t well inside, distance
+    from the line below the corridor share of |BC|), no where it lies clearly off it; neither is undecided.
+    Pairs spanning less than `min_span` decide nothing (their direction is noise)."""
+    seg = xy[C] - xy[B]
+    L = np.sqrt(seg[:, 0] * seg[:, 0] + seg[:, 1] * seg[:, 1])
+    ok = L >= min_span
+    u = seg / np.where(ok, L, 1.0)[:, None]
+    rel = xy[None, :, :] - xy[B][:, None, :]  # rel[p, a] = A - B of anchor pair p
+    Ls = np.where(ok, L, 1.0)[:, None]
+    t = (rel[..., 0] * u[:, None, 0] + rel[..., 1] * u[:, None, 1]) / Ls
+    lat = np.abs(rel[..., 1] * u[:, None, 0] - rel[..., 0] * u[:, None, 1]) / Ls
+    m, cor = th.between_t_margin, th.between_corridor
+    yes = (t > m) & (t < 1 - m) & (lat < cor) & ok[:, None]
+    no = ((t < m - th.between_t_band) | (t > 1 - m + th.between_t_band) | (lat > cor + th.between_corridor_band)) & ok[
+        :, None
+    ]
+    return t, yes, no
+
+
+def between_arrays(
+    xy: np.ndarray, uv: np.ndarray, ids: np.ndarray, categories: list[str], dist: np.ndarray, th: Any
+) -> Any:
     """Every anchor pair at once: (B, C, cand, code, t) with anchor positions B[p], C[p] (ids[B] < ids[C]),
     cand[p, a] = between(a, B[p], C[p]) is not False, code[p, a] its TRUE/UNDECIDED code and t[p, a] the
-    position along the segment. None when no pair spans a region."""
+    position along the ground-plane segment. A is between when it lies on the segment joining the anchors
+    both on the ground plane (`xy`, centres in m) and in the image (`uv`, mask centroids in pixels): the
+    audit found ground-plane corridors alone answering with objects a person sees beside both anchors.
+    None when no pair spans a region."""
     ids = np.asarray(ids)
     n = len(ids)
     if n < 3:
         return None
     xy = np.asarray(xy, float).reshape(n, 2)
+    uv = np.asarray(uv, float).reshape(n, 2)
     B, C = np.nonzero(ids[:, None] < ids[None, :])  # row-major: the order of nested (b, c) loops
     seg = xy[C] - xy[B]
-    L = np.sqrt(seg[:, 0] * seg[:, 0] + seg[:, 1] * seg[:, 1])
-    keep = L >= MIN_BETWEEN_SPAN
-    B, C, seg, L = B[keep], C[keep], seg[keep], L[keep]
+    keep = np.sqrt(seg[:, 0] * seg[:, 0] + seg[:, 1] * seg[:, 1]) >= MIN_BETWEEN_SPAN
+    B, C = B[keep], C[keep]
     if not len(B):
         return None
-    u = seg / L[:, None]
-    rel = xy[None, :, :] - xy[B][:, None, :]  # rel[p, a] = A - B of anchor pair p
-    t = (rel[..., 0] * u[:, None, 0] + rel[..., 1] * u[:, None, 1]) / L[:, None]
-    lat = np.abs(rel[..., 1] * u[:, None, 0] - rel[..., 0] * u[:, None, 1])
-    corridor = th.between_corridor * L[:, None]
-    m = th.between_t_margin
-    yes = (t > m) & (t < 1 - m) & (lat < corridor)
-    cand = ~((t < 0) | (t > 1) | (lat > 1.5 * corridor))
+    t, yes_w, no_w = segment_position(xy, B, C, th, MIN_BETWEEN_SPAN)
+    _ti, yes_i, no_i = segment_position(uv, B, C, th, MIN_BETWEEN_PX)
+    yes = yes_w & yes_i
+    cand = ~(no_w | no_i)
     rows = np.arange(len(B))
     cand[rows, B] = False
     cand[rows, C] = False
@@ -94,11 +119,11 @@ def between_arrays(xy: np.ndarray, ids: np.ndarray, categories: list[str], dist:
 
 
 def between_table(
-    xy: np.ndarray, ids: np.ndarray, categories: list[str], dist: np.ndarray, th: Any
+    xy: np.ndarray, uv: np.ndarray, ids: np.ndarray, categories: list[str], dist: np.ndarray, th: Any
 ) -> dict[tuple[int, int, int], tuple[int, float]]:
     """{(a, b, c) positions: (code, t)} for anchors b, c with ids[b] < ids[c]; False instances omitted.
     Shared by the geometry and the query index (which passes stored node centres and distances)."""
-    return table_from_arrays(between_arrays(xy, ids, categories, dist, th))
+    return table_from_arrays(between_arrays(xy, uv, ids, categories, dist, th))
 
 
 def table_from_arrays(arr: Any) -> dict[tuple[int, int, int], tuple[int, float]]:
@@ -117,7 +142,9 @@ def _between(geom: SceneGeom) -> dict[tuple[int, int, int], tuple[int, float]]:
     return cached(
         geom,
         "contain:between",
-        lambda g: between_table(g.centers[:, :2], g.ids, g.categories, g.surface_distance, g.th),
+        lambda g: between_table(
+            g.centers[:, :2], g.img_centroid * (g.W, g.H), g.ids, g.categories, g.surface_distance, g.th
+        ),
     )
 
 
@@ -164,8 +191,10 @@ class BetweenTable:
         self.ids = t.ids
         self.pos = t.pos
         xy = np.array([t.nodes[i].attributes["center"][:2] for i in t.ids], float).reshape(-1, 2)
+        W, H = t.graph.meta.get("image_size", (1, 1))
+        uv = np.array([t.nodes[i].attributes["img_xy"] for i in t.ids], float).reshape(-1, 2) * (W, H)
         cats = [t.nodes[i].category for i in t.ids]
-        arr = between_arrays(xy, np.array(t.ids), cats, t.distance_array(), t.th)
+        arr = between_arrays(xy, uv, np.array(t.ids), cats, t.distance_array(), t.th)
         self.pairs: dict[tuple[int, int], int] = {}
         self.rows: dict[tuple[int, int], tuple[frozenset[int], frozenset[int]]] = {}
         self._cells: tuple[list[list[bool]], list[list[int]], list[list[float]]] = ([], [], [])
@@ -262,8 +291,9 @@ register(
         "world",
         3,
         "position of A's centre along the B-C segment (0 at B, 1 at C)",
-        "between_t_margin, between_corridor",
-        "A's centre lies in the corridor spanned by B and C (ground plane), and no other object of A's category does",
+        "between_t_margin, between_corridor, between_t_band, between_corridor_band",
+        "A lies on the segment joining B and C on the ground plane and in the image (well inside its ends, near "
+        "its line), and no other object of A's category may",
         storage="derived",
         needs=G,
         evaluate=_between_eval,
