@@ -13,7 +13,7 @@ from typing import Any
 
 from refspatial_gen.core.errors import RecipeError, RecipeErrors
 from refspatial_gen.core.serialize import dumps
-from refspatial_gen.graph.visibility import check_truth_section
+from refspatial_gen.graph.config import check_graph_section
 from refspatial_gen.qa.config import load_qa_config
 from refspatial_gen.recipe_paths import Confinement, check_name, check_rewrite, check_source_config, check_templates
 from refspatial_gen.rewrite.config import load_rewrite_config
@@ -222,7 +222,7 @@ def load_recipe(
     check_rewrite(top["rewrite"], conf)
     splits = check_splits(top["splits"], file, lines, errors)
     graph_cfg = dict(top["graph"] or {})
-    check_truth_section(top["graph"], file, lines, errors)  # graph: truth: (graph/visibility.py)
+    check_graph_section(top["graph"], file, lines, errors)  # keys, thresholds, truth (graph/config.py)
     qa_cfg, deps = _qa(top, file, lines, errors) if not errors else (None, [])
     rewrite_cfg = None
     if top["rewrite"] is not None and not errors:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import pathlib
 
 import numpy as np
 import pytest
@@ -196,3 +197,24 @@ def test_in_view_shares_agree_with_a_fine_lattice_on_boxes_cut_by_the_border():
         worst_ver = max(worst_ver, abs(_box_in_view(f, box) - ref))
     assert worst_gen <= 1 / 24 + 0.005 and worst_ver <= 1 / 40 + 0.005, (worst_gen, worst_ver)
     assert worst_gen + worst_ver < IN_VIEW_TOL
+
+
+def test_graph_section_keys_and_thresholds_are_checked(tmp_path):
+    """A misspelt `graph:` key or a threshold given as text was accepted silently (reliability harness)."""
+
+    tpl = str(pathlib.Path("recipes/templates").resolve()) + "/"
+    base = pathlib.Path("recipes/image.yaml").read_text().replace("templates/", tpl)
+    bad = {
+        "graph:\n  thresholds:": "graph:\n  treshold: 1\n  thresholds:",
+        "size_margin_rel: 0.25": "size_margin_rel: wide",
+        "volume_margin_rel: 0.5": "volume_margn_rel: 0.5",
+    }
+    for old, new in bad.items():
+        assert old in base
+        p = tmp_path / "r.yaml"
+        p.write_text(base.replace(old, new))
+        with pytest.raises(RecipeErrors) as e:
+            load_recipe(str(p))
+        assert "graph" in str(e.value) and "r.yaml:" in str(e.value), str(e.value)
+    p.write_text(base)
+    assert load_recipe(str(p)).graph["thresholds"]["size_margin_rel"] == 0.25
