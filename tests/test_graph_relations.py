@@ -361,3 +361,22 @@ def test_registry_covers_the_31_with_metadata():
     for r in REGISTRY.values():
         for m in r.margin.split(", "):
             assert m in names, f"{r.id}: margin {m!r} is not a named threshold"
+
+
+def test_above_image_undecided_when_top_and_bottom_rows_disagree_with_the_centroids():
+    """Audit round 2: a person (head higher, feet higher, mass low in a skirt) was "lower in the image" than a
+    refrigerator spanning about the same rows, by centroids alone. Tops and bottoms must agree with the centres."""
+    from types import SimpleNamespace
+
+    from refspatial_gen.graph.relations.common import UNDECIDED
+    from refspatial_gen.graph.relations.directions import _image_vertical
+
+    geom = SimpleNamespace(
+        img_centroid=np.array([[0.48, 0.54], [0.87, 0.49], [0.2, 0.2]]),  # person, fridge, a picture high up
+        img_rows=np.array([[0.30, 0.78], [0.33, 0.85], [0.1, 0.3]]),
+        th=SimpleNamespace(image_margin=0.02),
+    )
+    v, codes, _ = _image_vertical(geom)
+    assert codes[0, 1] == UNDECIDED and codes[1, 0] == UNDECIDED  # was: fridge higher
+    assert codes[2, 0] != UNDECIDED and codes[2, 1] != UNDECIDED  # the picture is clearly higher than both
+    assert v[2, 0] > 0 and v[2, 1] > 0

@@ -64,9 +64,19 @@ def _depthwise(geom: SceneGeom) -> Matrices:
 
 
 def _image_vertical(geom: SceneGeom) -> Matrices:
+    """Mask centroids decide, but only where the masks' top rows and bottom rows order the two objects the same
+    way: a person and a refrigerator spanning the same rows are not one "higher in the image" than the other
+    because the person's mass sits in a skirt (audit round 2)."""
     y = geom.img_centroid[:, 1]
     v = y[None, :] - y[:, None]  # v[i, j] > 0: i higher in the image than j
-    return v, decide_matrix(v, geom.th.image_margin), geom.th.image_margin
+    codes = decide_matrix(v, geom.th.image_margin)
+    top, bottom = geom.img_rows[:, 0], geom.img_rows[:, 1]
+    with np.errstate(invalid="ignore"):
+        dt = top[None, :] - top[:, None]
+        db = bottom[None, :] - bottom[:, None]
+        known = np.isfinite(dt) & np.isfinite(db)
+        codes[known & ((np.sign(dt) != np.sign(v)) | (np.sign(db) != np.sign(v)))] = UNDECIDED
+    return v, codes, geom.th.image_margin
 
 
 _GROUPS = {"left": _lateral, "front": _depthwise, "above_image": _image_vertical}
