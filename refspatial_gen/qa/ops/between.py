@@ -6,7 +6,7 @@ from collections.abc import Collection
 from typing import TYPE_CHECKING, Any
 
 from refspatial_gen.qa.ops.base import SET, Arg, Op, Recorded
-from refspatial_gen.qa.ops.common import BOUND, EMPTY, MARGIN, NO_NARROWING, bounded, generic, name_of, resolve, set_in
+from refspatial_gen.qa.ops.common import MARGIN, bounded, generic, name_of, narrowed, resolve, set_in
 from refspatial_gen.qa.program import Ref, Step, StepFn
 
 if TYPE_CHECKING:
@@ -62,16 +62,7 @@ class Between(Op):
                     return slow(env, prev, ctx)  # the reference path names the reason (first bad member)
             elif u and not u.isdisjoint(s):
                 return MARGIN  # every bad member is undecided (none lacks a fact): the reference says "margin"
-            out = s & t
-            n = len(out)
-            if not n:
-                return EMPTY
-            if ctx.prune:
-                if n == len(s):
-                    return NO_NARROWING
-                if n < min_out or (exact and n != 1):
-                    return BOUND
-            return out
+            return narrowed(s, s & t, ctx.prune, min_out, exact)
 
         return fn
 

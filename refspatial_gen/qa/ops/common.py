@@ -21,6 +21,20 @@ NOT_UNIQUE, SAME_OBJECT, NO_ANCHOR, NO_POINT = (
 EMPTY_SET: frozenset[int] = frozenset()
 
 
+def narrowed(s: frozenset[int], out: frozenset[int], prune: bool, min_out: int, exact: bool) -> Any:
+    """A filter's result `out` of the set `s`, or why it is rejected: empty; when pruning, no narrowing or
+    fewer than `min_out` left (or not exactly one when the step must pick one)."""
+    n = len(out)
+    if not n:
+        return EMPTY
+    if prune:
+        if n == len(s):
+            return NO_NARROWING
+        if n < min_out or (exact and n != 1):
+            return BOUND
+    return out
+
+
 _RELATIONS = REGISTRY.loaded  # id -> Relation, a plain dict read on the hot path
 
 

@@ -8,13 +8,11 @@ from typing import TYPE_CHECKING, Any
 from refspatial_gen.graph.relations import REGISTRY
 from refspatial_gen.qa.ops.base import SET, Arg, Op
 from refspatial_gen.qa.ops.common import (
-    BOUND,
-    EMPTY,
     MARGIN,
     NO_FACT_R,
-    NO_NARROWING,
     bounded,
     name_of,
+    narrowed,
     resolve,
     set_in,
 )
@@ -61,16 +59,7 @@ class Relate(Op):
                 return MARGIN
             if m and not m.isdisjoint(s):
                 return NO_FACT_R
-            out = s & t
-            n = len(out)
-            if not n:
-                return EMPTY
-            if ctx.prune:
-                if n == len(s):
-                    return NO_NARROWING
-                if n < min_out or (exact and n != 1):
-                    return BOUND
-            return out
+            return narrowed(s, s & t, ctx.prune, min_out, exact)
 
         return fn
 

@@ -12,12 +12,12 @@ Why here: annotation readers must never let a malformed value reach the geometry
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path, PurePosixPath
 from typing import Any
 
 from refspatial_gen.core.errors import DropUnit, InputError
+from refspatial_gen.core.jsonfile import loads_checked
 
 MAX_JSON_BYTES = 2 * 1024**3  # a COCO train2017 instances file is ~450 MB
 
@@ -42,15 +42,7 @@ def load_json_file(path: Path) -> Any:
             raw = f.read()
     except OSError as e:
         raise InputError(str(path), f"cannot read: {e.strerror or e}") from None
-    try:
-        return json.loads(raw)
-    except UnicodeDecodeError:
-        raise InputError(str(path), "not UTF-8 JSON text") from None
-    except json.JSONDecodeError as e:
-        hint = " (truncated?)" if e.pos >= len(raw.rstrip()) - 1 else ""
-        raise InputError(str(path), f"not valid JSON: {e.msg} at line {e.lineno}, column {e.colno}{hint}") from None
-    except RecursionError:
-        raise InputError(str(path), "not valid JSON: nested too deeply") from None
+    return loads_checked(raw, path)
 
 
 def require_list(data: dict, key: str, path: Path, required: bool = True) -> list:

@@ -8,7 +8,6 @@ lists the views themselves (ScanNet's scene.json, a TUM rgb.txt) and cannot be r
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path, PurePosixPath
 from typing import Any
@@ -16,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from refspatial_gen.core.errors import DropUnit, InputError
+from refspatial_gen.core.jsonfile import loads_checked
 
 
 def short(v: Any, limit: int = 40) -> str:
@@ -95,15 +95,7 @@ def index_json(path: Path) -> Any:
         raise InputError(str(path), f"cannot read: {e.strerror or e}") from None
     if not raw.strip():
         raise InputError(str(path), "file is empty")
-    try:
-        return json.loads(raw)
-    except UnicodeDecodeError:
-        raise InputError(str(path), "not UTF-8 JSON text") from None
-    except json.JSONDecodeError as e:
-        hint = " (truncated?)" if e.pos >= len(raw.rstrip()) - 1 else ""
-        raise InputError(str(path), f"not valid JSON: {e.msg} at line {e.lineno}, column {e.colno}{hint}") from None
-    except RecursionError:
-        raise InputError(str(path), "not valid JSON: nested too deeply") from None
+    return loads_checked(raw, path)
 
 
 def view_list(meta: Any, path: Path, key: str = "frames") -> list:
