@@ -7,7 +7,7 @@ corners and edges of the surface, named from the viewer. Obstacle footprints (ev
 or over the surface, grown by a clearance) are subtracted, the region is cut to the part of the surface
 the camera's image covers, points are kept only when the depth map sees the surface there (2.5 cm), and
 a region needs a minimum visible area. The answer point is the visible sample farthest inside the region
-that keeps a clearance (`clear_samples`): `graph: truth: min_point_clearance_px` (12 px at 640x480) from every
+that keeps a clearance (`clear_samples`): `graph: truth: min_point_clearance_px` (20 px at 640x480) from every
 object's mask (but the surface's own object) and from the image border, and the thresholds' `free_clearance`
 from every obstacle footprint; it is re-checked after rounding to RefSpatial's three decimals with
 `check_free_point` and the clearance again. A region with no such point is dropped (graph.meta["truth"]:

@@ -28,7 +28,7 @@ pixel lengths are for a 640x480 image and scale with sqrt(width * height / (640 
                              no size question, no front (default 0.9)
   min_front_visible_fraction a front (facing, angle) needs this visible fraction (default 0.7)
   min_point_clearance_px     free-space answer points keep this far from every object's mask and from the
-                             image border (default 12 px; graph/freespace.py)
+                             image border (default 20 px; graph/freespace.py)
   size_tolerance             widen every category size range by this fraction (default 0.0)
 """
 
@@ -50,7 +50,7 @@ DEFAULTS: dict[str, float] = {
     "min_thickness_ratio": 0.25,
     "min_whole_in_view": 0.9,
     "min_front_visible_fraction": 0.7,
-    "min_point_clearance_px": 12.0,
+    "min_point_clearance_px": 20.0,
     "size_tolerance": 0.0,
 }
 _DOCS = {

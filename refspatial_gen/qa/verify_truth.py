@@ -94,6 +94,21 @@ def below_floor(frame: Frame, floor: dict[str, Any]) -> dict[int, str]:
     return out
 
 
+_SUPERLATIVES = {"tallest", "shortest", "biggest", "smallest", "largest", "widest", "thinnest"}
+
+
+def _names_size_superlative(question: str, category: str) -> bool:
+    """A size superlative word followed by the category's words, with at most one word (a colour) between."""
+    words = [w.strip(".,?!;:()[]\"'") for w in question.lower().split()]
+    cat = category.replace("_", " ").lower().split()
+    for k, w in enumerate(words):
+        if w in _SUPERLATIVES:
+            for skip in (1, 2):
+                if words[k + skip : k + skip + len(cat)] == cat:
+                    return True
+    return False
+
+
 def _scale(frame: Frame) -> float:
     return float(np.sqrt(frame.camera.width * frame.camera.height / 307200.0))  # lengths are for 640x480
 
@@ -179,6 +194,9 @@ def check_truth(qa: QAPair, frames: dict[str, Frame], graphs: dict[str, SceneGra
         for i in sorted(named):
             if (why := _cut(frame, objs[i], floor)) is not None:
                 out.append(f"size question names object {i} ({objs[i].category}): {why}")
+    for o in frame.objects:
+        if _names_size_superlative(qa.question, o.category) and (why := _cut(frame, o, floor)) is not None:
+            out.append(f"a size superlative of {o.category!r} while object {o.id} of it is cut: {why}")
     if not set(FRONT_RELATIONS).isdisjoint(qa.relations):
         out += _fronts(qa, frame, graph, named, floor)
     if "free_space" in qa.relations:
