@@ -40,7 +40,9 @@ def _scene():
 
 
 def _with(frame, oid, **changes):
-    return dataclasses.replace(frame, objects=[dataclasses.replace(o, **changes) if o.id == oid else o for o in frame.objects])
+    return dataclasses.replace(
+        frame, objects=[dataclasses.replace(o, **changes) if o.id == oid else o for o in frame.objects]
+    )
 
 
 @pytest.fixture(scope="module")

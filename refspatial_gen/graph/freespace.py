@@ -230,7 +230,7 @@ def _visible_samples(geom: SceneGeom, poly: Polygon, z: float, min_area: float =
 def clearance_map(geom: SceneGeom, exclude: int | None) -> np.ndarray:
     """(H, W) distance in pixels from each pixel to the nearest mask pixel of any object but `exclude` (the
     surface's own object, which the point lies on); inf everywhere when there is no such mask."""
-    key = ("_clearance_map", exclude)
+    key = f"_clearance_map:{exclude}"
     hit = geom.cache.get(key)
     if hit is None:
         import cv2

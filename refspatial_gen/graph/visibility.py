@@ -57,11 +57,23 @@ _DOCS = {
     "min_visible_px": (int, 1_000_000, "visible mask pixels every referent, option and mark needs"),
     "min_visible_fraction": (float, 1.0, "visible / unoccluded projected pixels (where the source measures it)"),
     "min_in_view_fraction": (float, 1.0, "share of the object's 3D box inside the camera's view (image border cut)"),
-    "min_thickness_px": (float, 1000.0, "largest inscribed disc radius (px at 640x480) below which a mask may be a sliver"),
-    "min_thickness_ratio": (float, 1.0, "... when also under this share of the half-size its middle extent projects to"),
+    "min_thickness_px": (
+        float,
+        1000.0,
+        "largest inscribed disc radius (px at 640x480) below which a mask may be a sliver",
+    ),
+    "min_thickness_ratio": (
+        float,
+        1.0,
+        "... when also under this share of the half-size its middle extent projects to",
+    ),
     "min_whole_in_view": (float, 1.0, "box share in view below which (or a mask at the border) an object is cut"),
     "min_front_visible_fraction": (float, 1.0, "visible fraction an object needs for its front (facing, angle)"),
-    "min_point_clearance_px": (float, 1000.0, "free-space point distance (px at 640x480) from every mask and the border"),
+    "min_point_clearance_px": (
+        float,
+        1000.0,
+        "free-space point distance (px at 640x480) from every mask and the border",
+    ),
     "size_tolerance": (float, 10.0, "widen every category size range by this fraction before a metric question"),
 }
 TRUTH_FIELDS: dict[str, Field] = {
@@ -105,7 +117,8 @@ def floor_of(config: dict[str, Any] | None) -> Floor:
     if unknown:
         raise ValueError(f"unknown graph.truth key(s) {sorted(unknown)}; known: {sorted(TRUTH_FIELDS)}")
     vals = {k: (raw[k] if raw.get(k) is not None else f.default) for k, f in TRUTH_FIELDS.items()}
-    return Floor(**{k: (int(v) if k == "min_visible_px" else float(v)) for k, v in vals.items()})
+    floats = {k: float(v) for k, v in vals.items() if k != "min_visible_px"}
+    return Floor(int(vals["min_visible_px"]), **floats)
 
 
 def px_scale(width: int, height: int) -> float:

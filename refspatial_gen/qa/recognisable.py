@@ -38,9 +38,9 @@ def withhold_cut(t: Template, env: dict[str, Any], ctx: Context, qa: QAPair) -> 
     for ix in (ctx.idx, ctx.second):
         if ix is None:
             continue
-        for n in ix.nodes.values():
-            bad = n.attributes.get("sized") is False or n.attributes.get("metric") is False
-            if bad and superlative_of(qa.question, n.category):
+        for node in ix.nodes.values():
+            bad = node.attributes.get("sized") is False or node.attributes.get("metric") is False
+            if bad and superlative_of(qa.question, node.category):
                 return SIZE_CUT
     if SIZE_RELATIONS.isdisjoint(qa.relations):
         return None
