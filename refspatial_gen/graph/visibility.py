@@ -159,14 +159,23 @@ def touches_border(mask: np.ndarray) -> bool:
     return bool(mask[:b].any() or mask[-b:].any() or mask[:, :b].any() or mask[:, -b:].any())
 
 
-def inscribed_radius(mask: np.ndarray) -> float:
-    """Radius (px) of the largest disc inside the mask: how thick its thickest part is (0 for no mask)."""
+def closing_side(floor: Floor, scale: float) -> int:
+    """Side (px) of the square that closes a mask before its thickness is measured: gaps narrower than the
+    thickness floor are what a viewer bridges (a scan's mask scattered over a lamp), a solid strip stays thin."""
+    return 2 * int(np.ceil(floor.min_thickness_px * scale)) + 1
+
+
+def inscribed_radius(mask: np.ndarray, side: int = 1) -> float:
+    """Radius (px) of the largest disc inside the mask, after closing it with a `side` x `side` square: how
+    thick its thickest part is (0 for no mask)."""
     import cv2
 
     rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
     if not len(rows):
         return 0.0
-    crop = np.pad(mask[rows[0] : rows[-1] + 1, cols[0] : cols[-1] + 1].astype(np.uint8), 1)
+    crop: np.ndarray = np.pad(mask[rows[0] : rows[-1] + 1, cols[0] : cols[-1] + 1].astype(np.uint8), side)
+    if side > 1:
+        crop = np.asarray(cv2.morphologyEx(crop, cv2.MORPH_CLOSE, np.ones((side, side), np.uint8)))
     return float(cv2.distanceTransform(crop, cv2.DIST_L2, cv2.DIST_MASK_PRECISE).max())
 
 
@@ -198,7 +207,9 @@ def floor_reasons(geom: Any, floor: Floor, masks: list[np.ndarray | None]) -> li
             out.append(LOW_FRACTION)
         elif geom.in_view[i] < floor.min_in_view_fraction:
             out.append(OUT_OF_VIEW)
-        elif is_sliver(inscribed_radius(m), projected_half_thickness(cam, o.box), floor, scale):
+        elif is_sliver(
+            inscribed_radius(m, closing_side(floor, scale)), projected_half_thickness(cam, o.box), floor, scale
+        ):
             out.append(THIN)
         else:
             out.append(None)

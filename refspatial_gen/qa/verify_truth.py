@@ -115,13 +115,15 @@ def _scale(frame: Frame) -> float:
 
 def _sliver(frame: Frame, o: Any, floor: dict[str, Any]) -> str | None:
     """Why the object's visible mask is a sliver (thin in pixels and much thinner than the object), or None."""
-    from scipy.ndimage import distance_transform_edt
+    from scipy.ndimage import binary_closing, distance_transform_edt
 
     n_px = float(floor.get("min_thickness_px", 0.0)) * _scale(frame)
     ratio = float(floor.get("min_thickness_ratio", 0.0))
     if n_px <= 0 or ratio <= 0 or o.mask is None:
         return None
-    r = float(distance_transform_edt(np.pad(o.mask.decode(), 1)).max())
+    side = 2 * int(np.ceil(n_px)) + 1  # closed first: gaps a viewer bridges (graph/visibility.closing_side)
+    m = binary_closing(np.pad(o.mask.decode(), side), structure=np.ones((side, side), bool))
+    r = float(distance_transform_edt(np.pad(m, 1)).max())
     _, z = frame.camera.project(np.asarray(o.box.center, float)[None])
     cam = frame.camera
     half = np.inf if z[0] <= 1e-3 else (cam.fx + cam.fy) / 4.0 * float(np.median(o.box.size)) / float(z[0])
