@@ -19,6 +19,7 @@ import numpy as np
 from refspatial_gen.core.mask import denormalise_point
 from refspatial_gen.core.model import Frame, FreeSpaceRegion, QAPair, Sample, SceneGraph
 from refspatial_gen.qa.ops import OPS
+from refspatial_gen.qa.verify_photo import check_photo
 from refspatial_gen.qa.verify_truth import check_truth
 from refspatial_gen.qa.verify_units import LENGTHS, check_length_text, check_size_step
 from refspatial_gen.qa.verify_world import ANGLE_TOL, LENGTH_ABS_TOL, LENGTH_REL_TOL, Fail, Run, Undecided, World, _size
@@ -120,6 +121,7 @@ def verify_qa(
         problems += _check_answer(qa, final, w, frame, graph)
     problems += _check_marks(qa, w, order if order is not None else list(frames))
     problems += check_truth(qa, frames, graphs)  # visibility floor, phrases without faint objects, metric trust
+    problems += check_photo(qa, frames[qa.frame_ids[0]]) if qa.frame_ids else []  # photo rules (qa/verify_photo.py)
     # --- trace and key steps
     problems += _check_trace(qa, w)
     return problems
