@@ -85,7 +85,7 @@ def test_position_unseen_reasons() -> None:
     assert position_unseen(_obj(1, "chair", (10, 10, 40, 60)), H, 0.02) is None
     assert position_unseen(_obj(1, "chair", (10, 10, 40, 96)), H, 0.05) == "foot_at_border"  # 4 px above the edge
     assert position_unseen(_obj(1, "chair", (0, 10, 40, 60)), H, 0.02) == "cut_by_border"
-    assert position_unseen(_obj(1, "sink", (10, 10, 40, 60)), H, 0.02) == "mounted_off_ground"
+    assert position_unseen(_obj(1, "sink", (10, 10, 40, 60)), H, 0.02) == "off_ground_category"
     assert position_unseen(_obj(1, "chair", (10, 10, 40, 60), contact="behind:2"), H, 0.02) == "occluded_in_front"
 
 

@@ -42,11 +42,6 @@ from refspatial_gen.truth.sizes import can_bear, size_range
 
 EPS = 1e-6
 OCCLUDED_MODES = ("category_height", "drop")
-# categories that never meet the floor: a sink is set in a counter or a vanity, so the bottom edge of its mask
-# (the basin) is not a ground contact; it is placed on the ground all the same (it has no height range to
-# refuse the placement), but no 3D position claim may rest on it (qa/faint_photo.py; audit round 2: 111076,
-# 368402: a counter sink lifted 10 m away, 0.2 m tall)
-OFF_GROUND = frozenset({"sink"})
 
 
 def height_bounds(category: str) -> tuple[float, float, float] | None:

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from refspatial_gen.core.model import Frame, QAPair
-from refspatial_gen.depth.geometric import OFF_GROUND
+from refspatial_gen.truth.contact import OFF_GROUND
 
 _POSITION = {"front", "behind", "above_world", "below_world", "close", "far", "depth", "distance", "touching"}
 _POSITION |= {"far_from", "next_to", "between", "inside", "outside"}

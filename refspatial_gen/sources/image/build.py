@@ -22,6 +22,7 @@ from refspatial_gen.core.mask import RLE
 from refspatial_gen.core.model import Frame, ObjectInstance
 from refspatial_gen.sources.image import filters as F
 from refspatial_gen.sources.image.annotations import Collection, ImageRecord, annotation_mask, read_panoptic_ids
+from refspatial_gen.sources.image.composite import raise_if_composite
 from refspatial_gen.sources.image.config import estimator_from_config, with_defaults
 from refspatial_gen.sources.image.intrinsics import Intrinsics, resolve_intrinsics
 from refspatial_gen.sources.image.keys import unit_key
@@ -73,12 +74,7 @@ def build_frame(
         raise DropUnit(
             "image_size_mismatch", f"{rec.file.name}: decoded {W}x{H}, annotation says {rec.width}x{rec.height}"
         )
-    if cfg["composite_max_std"] > 0:
-        from refspatial_gen.sources.image.composite import separator_band
-
-        band = separator_band(rgb, float(cfg["composite_max_std"]))
-        if band is not None:
-            raise DropUnit("image_composite", f"{rec.file.name}: uniform separator {band[0]}s {band[1]}-{band[2]}")
+    raise_if_composite(rgb, float(cfg["composite_max_std"]), rec.file.name)  # a collage: DropUnit image_composite
     tm["decode"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()

@@ -14,15 +14,30 @@ from __future__ import annotations
 
 import numpy as np
 
+from refspatial_gen.core.errors import DropUnit
+
 INTERIOR = 0.1  # a band must lie this share of the length away from both image edges (letterboxes are not seams)
 MIN_BAND = 2  # columns (rows) of a band
+MAX_BAND = 0.1  # a band is a strip between panels: at most this share of the length wide
+STEP = 30.0  # the panels beside the band: a colour step above this (0..255, any channel) ...
+SEAM_SHARE = 0.5  # ... along at least this share of the band's length, on both sides
+EDGE = 3  # within this many columns (rows) of the band (JPEG blurs the step over a pixel or two)
+
+
+def raise_if_composite(rgb: np.ndarray, max_std: float, name: str) -> None:
+    """DropUnit("image_composite") when the photo is pasted from several (`max_std` 0: never)."""
+    band = separator_band(rgb, max_std) if max_std > 0 else None
+    if band is not None:
+        raise DropUnit("image_composite", f"{name}: uniform separator {band[0]}s {band[1]}-{band[2]}")
 
 
 def separator_band(rgb: np.ndarray, max_std: float) -> tuple[str, int, int] | None:
     """(axis "column"|"row", first, last index) of a uniform band splitting the image into panels, or None.
 
-    A band: at least MIN_BAND adjacent interior columns (rows), each one colour over the whole height
-    (width): every channel's standard deviation along it is below `max_std`."""
+    A band: MIN_BAND to MAX_BAND x the length adjacent interior columns (rows), each one colour over the whole
+    height (width): every channel's standard deviation along it is below `max_std`; and a seam on both sides:
+    a column (row) within EDGE of it differs from the band's colour by more than STEP along SEAM_SHARE of its
+    length (a flat background strip of a rendered scene runs into more flat background, not into a photo)."""
     a = np.asarray(rgb, np.float32)
     for name, img in (("column", a), ("row", a.transpose(1, 0, 2))):
         n = img.shape[1]
@@ -30,19 +45,26 @@ def separator_band(rgb: np.ndarray, max_std: float) -> tuple[str, int, int] | No
         lo, hi = int(np.ceil(INTERIOR * n)), int(np.floor((1 - INTERIOR) * n))
         flat = np.zeros(n, bool)
         flat[lo:hi] = spread[lo:hi] < max_std
-        run = _first_run(flat, MIN_BAND)
-        if run is not None:
-            return name, run[0], run[1]
+        for first, last in _runs(flat, MIN_BAND, max(MIN_BAND, int(MAX_BAND * n))):
+            colour = img[:, first : last + 1].mean(axis=(0, 1))
+            if all(_seam(img, cols, colour) for cols in (range(first - EDGE, first), range(last + 1, last + 1 + EDGE))):
+                return name, first, last
     return None
 
 
-def _first_run(flags: np.ndarray, min_len: int) -> tuple[int, int] | None:
+def _seam(img: np.ndarray, cols: range, colour: np.ndarray) -> bool:
+    return any(float((np.abs(img[:, c] - colour).max(axis=1) > STEP).mean()) >= SEAM_SHARE for c in cols)
+
+
+def _runs(flags: np.ndarray, min_len: int, max_len: int) -> list[tuple[int, int]]:
+    """(first, last) of every run of True of length min_len..max_len."""
+    out = []
     start = None
     for i, f in enumerate([*flags.tolist(), False]):
         if f and start is None:
             start = i
         elif not f and start is not None:
-            if i - start >= min_len:
-                return start, i - 1
+            if min_len <= i - start <= max_len:
+                out.append((start, i - 1))
             start = None
-    return None
+    return out

@@ -7,14 +7,15 @@ That is a guess when the edge is not the object's foot:
   foot_at_border      its lowest row lies within `foot_border_margin` x the height of the bottom edge: the
                       foot is at or below the edge (a half-framed elephant, COCO 384553)
   occluded_in_front   it stands behind an object that hides its foot
-  mounted_off_ground  a category that never meets the floor (depth.geometric.OFF_GROUND: a sink) placed on it
+  off_ground_category  a category whose bottom edge is not a floor contact (truth/contact.py: a sink,
+                      a held umbrella or handbag) placed on the ground
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from refspatial_gen.depth.geometric import OFF_GROUND
+from refspatial_gen.truth.contact import OFF_GROUND
 
 
 def position_unseen(obj: Any, height: int, foot_border_margin: float) -> str | None:
@@ -32,7 +33,7 @@ def position_unseen(obj: Any, height: int, foot_border_margin: float) -> str | N
     if prov.get("contact_truncated"):
         return "foot_at_border"
     if obj.category in OFF_GROUND and prov.get("contact") == "ground":
-        return "mounted_off_ground"
+        return "off_ground_category"
     return None
 
 
