@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from refspatial_gen.graph.colour import delta_e
 from refspatial_gen.graph.relations import directions, sizes
 from refspatial_gen.graph.relations.common import FALSE, TRUE
 from refspatial_gen.graph.scene import SceneGeom
@@ -108,6 +109,25 @@ def _group_phrases(geom: SceneGeom, group: list[int], noun: str, out: dict[int, 
                 out[i].append((pri_d, f"the {ORDINAL_WORDS[k - r + 1]} farthest {noun}"))
 
 
+def colour_sets_apart(geom: SceneGeom, sub: list[int], members: list[int]) -> str | None:
+    """Whether the colour word shared by `sub` singles them out among `members` (same category, hidden and
+    faint ones included: a viewer may still see them), or why not: every other member needs a confident
+    colour word of its own ("colour_phrase_other_unnamed"; round 2: a tan basket was "the brown basket" because
+    the obviously brown one was below the namer's margin) that is also far in CIELAB from every member of
+    `sub` ("colour_phrase_too_close": beige vs brown, white vs light gray), and `sub` its measured colours."""
+    cols, labs = geom.colours, geom.colour_lab
+    if any(labs[i] is None for i in sub):
+        return "colour_phrase_other_unnamed"
+    for j in members:
+        if j in sub:
+            continue
+        if cols[j] is None or labs[j] is None:
+            return "colour_phrase_other_unnamed"
+        if any(delta_e(labs[i], labs[j]) < geom.th.colour_min_delta_e for i in sub):  # type: ignore[arg-type]
+            return "colour_phrase_too_close"
+    return None
+
+
 def make_phrases(geom: SceneGeom) -> list[list[str]]:
     """Phrases per object position, shortest first (ties: axis of largest spread, then alphabetical)."""
     n = geom.n
@@ -118,22 +138,27 @@ def make_phrases(geom: SceneGeom) -> list[list[str]]:
     for i in range(n):
         by_cat.setdefault(cats[i], []).append(i)
     simple: dict[int, str] = {}  # anchor phrases (visible objects only): category or colour + category
+    truth = geom.cache.setdefault("truth", {})
     for cat, members in sorted(by_cat.items()):
         if len(members) == 1:
             out[members[0]].append((0, f"the {cat}"))
             if geom.points[members[0]] is not None:
                 simple[members[0]] = f"the {cat}"
-        for i in members:
-            if cols[i] is not None and sum(cols[j] == cols[i] for j in members) == 1:
-                out[i].append((0, f"the {cols[i]} {cat}"))
-                if geom.points[i] is not None:
-                    simple.setdefault(i, f"the {cols[i]} {cat}")
-        _group_phrases(geom, members, cat, out)
         for col in sorted({c for c in (cols[i] for i in members) if c is not None}):
             sub = [i for i in members if cols[i] == col]
-            # a colour subgroup phrase must also beat same-category objects whose colour is unknown
-            if len(sub) >= 2 and all(cols[i] is not None for i in members):
+            why = colour_sets_apart(geom, sub, members)
+            if why is not None:
+                if len(members) > 1:  # a lone object needs no colour word: not counted
+                    truth[why] = truth.get(why, 0) + sum(geom.points[i] is not None for i in sub)
+                continue
+            if len(sub) == 1:
+                i = sub[0]
+                out[i].append((0, f"the {col} {cat}"))
+                if geom.points[i] is not None:
+                    simple.setdefault(i, f"the {col} {cat}")
+            elif len(sub) < len(members):  # "the leftmost brown basket" when every basket is brown: a false contrast
                 _group_phrases(geom, sub, f"{col} {cat}", out)
+        _group_phrases(geom, members, cat, out)
     _anchor_phrases(geom, by_cat, cats, simple, out)
     result = []
     for i in range(n):
