@@ -23,6 +23,14 @@ from refspatial_gen.graph.support import get_supports
 
 ORDINAL_WORDS = {2: "second", 3: "third"}
 MAX_PHRASES = 8
+ANCHORED_WORDS = (" closest to ", " farthest from ", " on ")  # phrases that name the object through another
+
+
+def anchored(phrase: str) -> bool:
+    """True for a phrase that names its object through another object or surface ("the basket closest to
+    the orange", "the cup on the tray"): inside another phrase's relative clause it nests a second clause."""
+    p = f" {phrase} "
+    return any(w in p for w in ANCHORED_WORDS)
 
 
 def display_category(cat: str) -> str:

@@ -146,6 +146,25 @@ def _check_phrases(qa: QAPair, graph: SceneGraph, frame: Frame) -> list[str]:
                     )
                 if v["phrase"].lower() not in q:
                     out.append(f"phrase {v['phrase']!r} does not appear in the question")
+    out += _check_nesting(qa)
+    return out
+
+
+_ANCHORED = re.compile(r"\b(closest to|farthest from|on) the\b")
+
+
+def _check_nesting(qa: QAPair) -> list[str]:
+    """An object named inside the described object's relative clauses (an anchor of a step that narrows a set:
+    its record reads `in`, or of `choose`) must be named directly, not through a third object (qa/nesting.py's rule)."""
+    out = []
+    for k, st in enumerate(qa.program):
+        args = st.get("args") or {}
+        if "in" not in args and st.get("op") != "choose":
+            continue
+        for name in ("anchor", "anchors"):
+            for v in _walk(args.get(name)):
+                if isinstance(v, dict) and isinstance(v.get("phrase"), str) and _ANCHORED.search(v["phrase"].lower()):
+                    out.append(f"step {k + 1} ({st['op']}): nested phrase {v['phrase']!r} inside a relative clause")
     return out
 
 
