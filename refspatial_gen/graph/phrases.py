@@ -33,8 +33,16 @@ def anchored(phrase: str) -> bool:
     return any(w in p for w in ANCHORED_WORDS)
 
 
+# categories whose own name is a word the questions use for something else: "the camera" is also the viewpoint
+# ("closest to the camera", "from the camera"), so the simulated catalog's camera is called a photo camera
+# wherever a question or phrase names it (graph/resolve.py parses the same names)
+DISPLAY_NAMES = {"camera": "photo camera"}
+
+
 def display_category(cat: str) -> str:
-    return cat.replace("_", " ").strip().lower()
+    """The category as questions and phrases name it."""
+    c = " ".join(cat.replace("_", " ").lower().split())
+    return DISPLAY_NAMES.get(c, c)
 
 
 def _extreme(codes: np.ndarray, i: int, group: list[int]) -> bool:

@@ -20,6 +20,7 @@ import numpy as np
 
 from refspatial_gen.core.geometry import Box3D, box_distance
 from refspatial_gen.core.model import Frame, SceneGraph
+from refspatial_gen.graph.phrases import DISPLAY_NAMES
 
 SUPERLATIVES = {  # word -> (feature, pick the largest?)
     "tallest": ("height", True),
@@ -51,7 +52,8 @@ class _Scene:
 
 
 def _norm(cat: str) -> str:
-    return cat.replace("_", " ").strip().lower()
+    c = " ".join(cat.replace("_", " ").lower().split())
+    return DISPLAY_NAMES.get(c, c)  # the names phrases use (data shared with the generator, like thresholds)
 
 
 def _tolerances(th: dict[str, Any]) -> dict[str, float]:
