@@ -164,8 +164,9 @@ def make_phrases(geom: SceneGeom) -> list[list[str]]:
             sub = [i for i in members if cols[i] == col]
             why = colour_sets_apart(geom, sub, members)
             if why is not None:
-                if len(members) > 1:  # a lone object needs no colour word: not counted
-                    truth[why] = truth.get(why, 0) + sum(geom.points[i] is not None for i in sub)
+                lost = sum(geom.points[i] is not None for i in sub)  # visible objects that lose the word
+                if len(members) > 1 and lost:  # a lone object needs no colour word: not counted
+                    truth[why] = truth.get(why, 0) + lost
                 continue
             if len(sub) == 1:
                 i = sub[0]
