@@ -5,8 +5,9 @@ Why: audit round 2 (sim:000020/v0:07) read "the basket that is bigger than the s
 closest to the basket closest to the orange" as one stacked reference; English attaches every following
 clause to the nearest noun, so a person cannot tell which object each clause describes. The anchors of the
 steps that narrow the described object's set (relate, superlative, between, ...: `Op.chain`) and of
-`choose` ("the marked object farthest from {anchor}") are rendered inside its relative clauses; when one of their phrases is itself anchored the pair is withheld
-(`phrase_nested`, counted in sample.meta["truth"]).
+`choose` ("the marked object farthest from {anchor}") are rendered inside its relative clauses; when one
+of their phrases is itself anchored the pair is withheld (`phrase_nested`, counted in sample.meta["truth"]
+per withheld attempt).
 """
 
 from __future__ import annotations
