@@ -22,7 +22,8 @@ TEMPLATES = Path(__file__).resolve().parent.parent / "recipes" / "templates"
 
 
 def _nested(qa) -> list[str]:
-    """Anchor phrases of set-narrowing steps (their record reads `in`) and of `choose` that name their object through another."""
+    """Anchor phrases of set-narrowing steps (their record reads `in`) and of `choose` that name their object
+    through another."""
     out = []
     for st in qa.program:
         args = st.get("args") or {}
@@ -56,13 +57,13 @@ def test_no_anchored_phrase_inside_a_relative_clause(generated):
     bad = [(q.question, _nested(q)) for q in pairs if _nested(q)]
     assert not bad, bad[:3]
     assert truth.get("phrase_nested", 0) > 0  # the rule had something to withhold in these scenes
-    from refspatial_gen.qa.verify import _check_nesting
+    from refspatial_gen.qa.verify_nesting import check_nesting as _check_nesting
 
     assert all(not _check_nesting(q) for q in pairs)
 
 
 def test_verify_flags_a_nested_phrase(generated):
-    from refspatial_gen.qa.verify import _check_nesting
+    from refspatial_gen.qa.verify_nesting import check_nesting as _check_nesting
 
     def relative(st):
         return isinstance((st.get("args") or {}).get("anchor"), dict) and "in" in st["args"]

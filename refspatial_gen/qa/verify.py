@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
@@ -19,6 +19,8 @@ import numpy as np
 from refspatial_gen.core.mask import denormalise_point
 from refspatial_gen.core.model import Frame, FreeSpaceRegion, QAPair, Sample, SceneGraph
 from refspatial_gen.qa.ops import OPS
+from refspatial_gen.qa.verify_nesting import check_nesting
+from refspatial_gen.qa.verify_nesting import walk as _walk
 from refspatial_gen.qa.verify_truth import check_truth
 from refspatial_gen.qa.verify_units import LENGTHS, check_length_text, check_size_step
 from refspatial_gen.qa.verify_world import ANGLE_TOL, LENGTH_ABS_TOL, LENGTH_REL_TOL, Fail, Run, Undecided, World, _size
@@ -146,36 +148,8 @@ def _check_phrases(qa: QAPair, graph: SceneGraph, frame: Frame) -> list[str]:
                     )
                 if v["phrase"].lower() not in q:
                     out.append(f"phrase {v['phrase']!r} does not appear in the question")
-    out += _check_nesting(qa)
+    out += check_nesting(qa)
     return out
-
-
-_ANCHORED = re.compile(r"\b(closest to|farthest from|on) the\b")
-
-
-def _check_nesting(qa: QAPair) -> list[str]:
-    """An object named inside the described object's relative clauses (an anchor of a step that narrows a set:
-    its record reads `in`, or of `choose`) must be named directly, not through a third object (qa/nesting.py's rule)."""
-    out = []
-    for k, st in enumerate(qa.program):
-        args = st.get("args") or {}
-        if "in" not in args and st.get("op") != "choose":
-            continue
-        for name in ("anchor", "anchors"):
-            for v in _walk(args.get(name)):
-                if isinstance(v, dict) and isinstance(v.get("phrase"), str) and _ANCHORED.search(v["phrase"].lower()):
-                    out.append(f"step {k + 1} ({st['op']}): nested phrase {v['phrase']!r} inside a relative clause")
-    return out
-
-
-def _walk(x: Any) -> Iterator[dict[str, Any]]:
-    if isinstance(x, dict):
-        yield x
-        for v in x.values():
-            yield from _walk(v)
-    elif isinstance(x, list):
-        for v in x:
-            yield from _walk(v)
 
 
 def _check_answer(qa: QAPair, final: Any, w: World, frame: Frame, graph: SceneGraph) -> list[str]:
