@@ -64,6 +64,9 @@ class Thresholds:
     # runner-up; below either the object gets no colour word (counted as colour_unnamed_margin)
     colour_min_share: float = 0.5
     colour_margin: float = 0.2
+    # a colour word names an object only when every other object of its category has a confident, different
+    # word AND a colour at least this far in CIELAB (CIE76; graph/phrases.py, graph/resolve.py)
+    colour_min_delta_e: float = 20.0
     # between (graph/relations/containment.py): undecided bands outside the decided region, so "not
     # between" is only said clearly off the segment (t < m - band, t > 1 - m + band, or off by corridor + band)
     between_t_band: float = 0.10

@@ -18,7 +18,7 @@ import numpy as np
 from refspatial_gen.core.geometry import Box3D, box_distance
 from refspatial_gen.core.mask import answer_pixel, denormalise_point, normalise_point
 from refspatial_gen.core.model import Frame, SupportSurface
-from refspatial_gen.graph.colour import colour_word, image_white, mask_pixels
+from refspatial_gen.graph.colour import colour_lab, colour_word, image_white, mask_pixels
 from refspatial_gen.graph.constants import Thresholds
 from refspatial_gen.graph.gravity import Gravity
 
@@ -156,6 +156,7 @@ class SceneGeom:
         self.points: list[tuple[float, float] | None] = [None] * n
         self.colours: list[str | None] = [None] * n
         self.colour_how: list[str] = ["no_mask"] * n
+        self.colour_lab: list[tuple[float, float, float] | None] = [None] * n  # graph/phrases.py: colour words
         self.mask_depth = np.full(n, np.nan)
         self.mask_depth_spread = np.full(n, np.nan)
         depth = self.frame.depth
@@ -172,8 +173,10 @@ class SceneGeom:
             self.img_centroid[i] = ((xs.mean() + x0 + 0.5) / W, (ys.mean() + y0 + 0.5) / H)
             self.img_rows[i] = (y0 / H, y1 / H)
             self.points[i] = valid_point(m, x0, y0, W, H)
+            px = mask_pixels(rgb[y0:y1, x0:x1], m)
+            self.colour_lab[i] = colour_lab(px, white)
             self.colours[i], self.colour_how[i] = colour_word(
-                mask_pixels(rgb[y0:y1, x0:x1], m),
+                px,
                 o.attributes.get("color"),
                 o.category,
                 self.th.colour_min_share,

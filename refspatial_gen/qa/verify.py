@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
@@ -19,6 +19,8 @@ import numpy as np
 from refspatial_gen.core.mask import denormalise_point
 from refspatial_gen.core.model import Frame, FreeSpaceRegion, QAPair, Sample, SceneGraph
 from refspatial_gen.qa.ops import OPS
+from refspatial_gen.qa.verify_nesting import check_nesting
+from refspatial_gen.qa.verify_nesting import walk as _walk
 from refspatial_gen.qa.verify_photo import check_photo
 from refspatial_gen.qa.verify_truth import check_truth
 from refspatial_gen.qa.verify_units import LENGTHS, check_length_text, check_size_step
@@ -148,17 +150,8 @@ def _check_phrases(qa: QAPair, graph: SceneGraph, frame: Frame) -> list[str]:
                     )
                 if v["phrase"].lower() not in q:
                     out.append(f"phrase {v['phrase']!r} does not appear in the question")
+    out += check_nesting(qa)
     return out
-
-
-def _walk(x: Any) -> Iterator[dict[str, Any]]:
-    if isinstance(x, dict):
-        yield x
-        for v in x.values():
-            yield from _walk(v)
-    elif isinstance(x, list):
-        for v in x:
-            yield from _walk(v)
 
 
 def _check_answer(qa: QAPair, final: Any, w: World, frame: Frame, graph: SceneGraph) -> list[str]:
