@@ -58,15 +58,19 @@ def test_tallest_is_not_given_when_the_runner_up_is_within_the_ratio():
 
 
 # ------------------------------------------------------------------ left / right: a gap in the image
-def test_left_needs_a_clear_image_gap():
-    """4 cm apart at the same depth is > lateral_margin (2 cm) but about 3 % of the image width: undecided
-    (was: left, the image "agreeing" by half of image_margin). 15 cm apart stays decided."""
-    small = (0.03, 0.03, 0.08)
-    fr, g = scene(("can", "red", box(-0.02, 0.1, small)), ("can", "blue", box(0.02, 0.1, small)))
-    check(fr, g, "left", (1, 2), None)
+def test_left_needs_a_clear_image_gap_when_one_object_is_in_front_of_the_other():
+    """sim/0/sim:000018/v1:10: a box in front of another, its centroid 2% of the image width to the left, was
+    "left of" it (metric gap > lateral_margin, image "agreeing" by half of image_margin). Where the masks'
+    columns overlap the centroids must be image_clear_margin (5%) of the width apart: undecided. Two small cans
+    side by side (disjoint columns), their centres 4 cm apart, show their order: decided."""
+    fr, g = scene(("can", "red", box(0.04, -0.25, (0.04, 0.04, 0.10))), ("box", "blue", box(0.0, 0.3, (0.3, 0.1, 0.2))))
+    du = g.img_centroid[0, 0] - g.img_centroid[1, 0]
+    assert 0.01 < du < 0.05  # the old rule's image check passed
+    check(fr, g, "right", (1, 2), None)
     graph = build_graph(fr, {"free_space": False})
     assert graph.meta["truth"]["margin_image_lateral"] == 1
-    fr, g = scene(("can", "red", box(-0.08, 0.1, small)), ("can", "blue", box(0.08, 0.1, small)))
+    small = (0.03, 0.03, 0.08)
+    fr, g = scene(("can", "red", box(-0.02, 0.1, small)), ("can", "blue", box(0.02, 0.1, small)))
     check(fr, g, "left", (1, 2), True)
 
 

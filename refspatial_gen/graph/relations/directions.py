@@ -45,19 +45,24 @@ def overlapping(geom: SceneGeom, axis: int) -> np.ndarray:
 
 def image_gap(geom: SceneGeom, axis: int, floor: float) -> np.ndarray:
     """[i, j]: the separation the two image centroids need along image `axis` (0 x, 1 y) for a person to see
-    the order: `floor` (a fraction of the image side) or `image_extent_share` of the smaller of the two masks'
-    extents along the axis, whichever is larger (an object without a mask: the floor alone)."""
+    the order: `image_extent_share` of the smaller of the two masks' extents along the axis and, where the
+    extents overlap (one object in front of the other), at least `floor` (a fraction of the image side).
+    Masks side by side (disjoint extents) show their order however small they are; an object without a
+    mask needs the floor."""
     span = geom.img_cols if axis == 0 else geom.img_rows
-    ext = span[:, 1] - span[:, 0]
+    lo, hi = span[:, 0], span[:, 1]
     with np.errstate(invalid="ignore"):
-        smaller = np.fmin(ext[:, None], ext[None, :])
-        return np.fmax(floor, geom.th.image_extent_share * smaller)
+        smaller = np.fmin((hi - lo)[:, None], (hi - lo)[None, :])
+        apart = (np.minimum(hi[:, None], hi[None, :]) - np.maximum(lo[:, None], lo[None, :])) <= 0
+        need = np.where(apart, 0.0, floor)  # NaN extents compare False: not apart, the floor applies
+        return np.fmax(need, geom.th.image_extent_share * smaller)
 
 
 def _lateral(geom: SceneGeom) -> Matrices:
     """Camera-frame centres decide with the metric margin; the image must agree and show the order clearly:
-    centroids apart by image_clear_margin of the width and image_extent_share of the narrower mask (a tray
-    lying in front of two others and overlapping both is neither left nor right of them: audit round 2)."""
+    centroids apart by image_extent_share of the narrower mask and, where the masks' columns overlap, by
+    image_clear_margin of the width (a tray lying in front of two others and overlapping both is neither left
+    nor right of them; a box 2% of the width left of the box behind it is not "left of" it: audit round 2)."""
     x = geom.cam_centers[:, 0]
     u = geom.img_centroid[:, 0]
     v = x[None, :] - x[:, None]  # v[i, j] > 0: i is left of j
@@ -164,7 +169,8 @@ _pair(
     "camera-x of B's centre minus A's (m)",
     "lateral_margin, image_margin, image_clear_margin, image_extent_share",
     "A's centre is left of B's in the camera frame by more than the margin, the image agrees with the mask "
-    "centroids clearly apart (image_clear_margin of the width and image_extent_share of the narrower mask) "
+    "centroids clearly apart (image_extent_share of the narrower mask, and image_clear_margin of the width "
+    "where the masks' columns overlap) "
     "and their boxes do not overlap (footprints, half the shorter x extent)",
 )
 _mirror(
@@ -196,8 +202,8 @@ _pair(
     "img",
     "image-y of B's mask centroid minus A's (fraction of height)",
     "image_margin, image_clear_margin, image_extent_share",
-    "A's 2D centre is higher in the image than B's by image_clear_margin of the height and image_extent_share "
-    "of the shorter mask, "
+    "A's 2D centre is higher in the image than B's by image_extent_share of the shorter mask (and "
+    "image_clear_margin of the height where the masks' rows overlap), "
     "the masks' top and bottom rows agreeing",
 )
 _mirror(
