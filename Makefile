@@ -111,6 +111,7 @@ SHARED ?= $(or $(REFSPATIAL_SHARED_DATA),../shared/data)
 AUDIT_DATA ?= out/audit-data
 AUDIT_OUT ?= out/audit
 AUDIT_N ?= 150
+AUDIT_SEED ?= 0
 AUDIT_RUN = $(BIN)/refspatial-gen shards --quiet --workers $(WORKERS)
 audit: setup assets-shared
 	$(AUDIT_RUN) --recipe recipes/default.yaml --scenes 24 --out $(AUDIT_DATA)/sim
@@ -119,7 +120,7 @@ audit: setup assets-shared
 	$(AUDIT_RUN) --recipe recipes/scan.yaml --input $(SHARED)/scannet_scene0000_00 --out $(AUDIT_DATA)/scan-scannet
 	$(AUDIT_RUN) --recipe recipes/image.yaml --input $(SHARED)/coco_tiny_train2017 --out $(AUDIT_DATA)/photos
 	$(BIN)/refspatial-gen audit sim=$(AUDIT_DATA)/sim ycb=$(AUDIT_DATA)/ycb scan=$(AUDIT_DATA)/scan-sun \
-	  scan=$(AUDIT_DATA)/scan-scannet photos=$(AUDIT_DATA)/photos --n $(AUDIT_N) --seed 0 --out $(AUDIT_OUT)
+	  scan=$(AUDIT_DATA)/scan-scannet photos=$(AUDIT_DATA)/photos --n $(AUDIT_N) --seed $(AUDIT_SEED) --out $(AUDIT_OUT)
 
 
 # ruff (lint + format check) over LINT_PATHS, mypy --strict over TYPED_PATHS, and the recipe/template lint.
