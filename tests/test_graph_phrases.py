@@ -62,9 +62,9 @@ def test_resolver_reports_ambiguity():
 
 def test_superlatives_ordinals_and_anchor_phrases():
     fr, _ = scene(
-        ("can", "red", box(-0.3, 0.0, (0.06, 0.06, 0.20))),
+        ("can", "red", box(-0.3, 0.0, (0.06, 0.06, 0.30))),
         ("can", "red", box(-0.1, 0.0, (0.06, 0.06, 0.10))),
-        ("can", "red", box(0.1, 0.0, (0.06, 0.06, 0.13))),
+        ("can", "red", box(0.1, 0.0, (0.06, 0.06, 0.16))),
         ("tray", "blue", box(0.3, 0.0, (0.20, 0.15, 0.02))),
     )
     g = build_graph(fr, {"free_space": False})

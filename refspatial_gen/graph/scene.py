@@ -153,6 +153,7 @@ class SceneGeom:
         self.mask_area = np.zeros(n, dtype=np.int64)
         self.img_centroid = np.full((n, 2), np.nan)  # normalised
         self.img_rows = np.full((n, 2), np.nan)  # normalised top and bottom rows of the visible mask
+        self.img_cols = np.full((n, 2), np.nan)  # normalised left and right columns of the visible mask
         self.points: list[tuple[float, float] | None] = [None] * n
         self.colours: list[str | None] = [None] * n
         self.colour_how: list[str] = ["no_mask"] * n
@@ -172,6 +173,7 @@ class SceneGeom:
             self.mask_area[i] = len(xs)
             self.img_centroid[i] = ((xs.mean() + x0 + 0.5) / W, (ys.mean() + y0 + 0.5) / H)
             self.img_rows[i] = (y0 / H, y1 / H)
+            self.img_cols[i] = (x0 / W, x1 / W)
             self.points[i] = valid_point(m, x0, y0, W, H)
             px = mask_pixels(rgb[y0:y1, x0:x1], m)
             self.colour_lab[i] = colour_lab(px, white)
