@@ -200,6 +200,7 @@ def _anchor_phrases(
         return
     d = geom.surface_distance
     m = geom.th.anchor_distance_margin
+    rel = geom.th.distance_margin_rel  # the winner must also beat the runner-up by this share (a visible gap)
     supports, _ = get_supports(geom)
     surf_names = {s.id: (s.name or f"the {s.kind}") for s in geom.surfaces}
     for cat, members in sorted(by_cat.items()):
@@ -211,9 +212,10 @@ def _anchor_phrases(
             da = d[members, a]
             for k, i in enumerate(members):
                 others = np.delete(da, k)
-                if da[k] + m < others.min():
+                lo, hi = float(others.min()), float(others.max())
+                if da[k] + max(m, rel * lo) < lo:
                     out[i].append((3, f"the {cat} closest to {simple[a]}"))
-                if da[k] - m > others.max():
+                if da[k] - max(m, rel * da[k]) > hi:
                     out[i].append((3, f"the {cat} farthest from {simple[a]}"))
         for i in members:
             s = supports[i]

@@ -64,6 +64,7 @@ def _tolerances(th: dict[str, Any]) -> dict[str, float]:
         "height_rel": th["size_margin_rel"] / 2,
         "volume_rel": th["volume_margin_rel"] / 2,
         "dist": th["anchor_distance_margin"] / 2,
+        "dist_rel": th.get("distance_margin_rel", 0.0) / 2,
         "colour_de": th.get("colour_min_delta_e", 20.0),  # no slack: both sides measure the same pixels
         "support_gap": th["support_gap"],
     }
@@ -257,7 +258,8 @@ def _resolve(sc: _Scene, phrase: str) -> list[int]:
         if not len(d):
             return []
         target = d.min() if m["rel"] == "closest to" else d.max()
-        return [members[k] for k in np.flatnonzero(_within(d, target, sc.tol["dist"]))]
+        tol = np.maximum(sc.tol["dist"], sc.tol["dist_rel"] * np.maximum(d, target))  # the generator's relative gap
+        return [members[k] for k in np.flatnonzero(_within(d, target, tol))]
     m = _ORD_SIDE.match(body)
     if m and (base := _base(sc, m["base"])) is not None:
         if isinstance(base, _Unresolved):
