@@ -374,7 +374,8 @@ def test_above_image_undecided_when_top_and_bottom_rows_disagree_with_the_centro
     geom = SimpleNamespace(
         img_centroid=np.array([[0.48, 0.54], [0.87, 0.49], [0.2, 0.2]]),  # person, fridge, a picture high up
         img_rows=np.array([[0.30, 0.78], [0.33, 0.85], [0.1, 0.3]]),
-        th=SimpleNamespace(image_margin=0.02),
+        th=SimpleNamespace(image_margin=0.02, image_clear_margin=0.05, image_extent_share=0.5),
+        cache={},
     )
     v, codes, _ = _image_vertical(geom)
     assert codes[0, 1] == UNDECIDED and codes[1, 0] == UNDECIDED  # was: fridge higher

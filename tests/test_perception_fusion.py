@@ -83,7 +83,7 @@ def test_scannet_views_fuse_into_the_annotated_objects(shared_data):
 
     root = shared_data / "scannet_scene0000_00"
     r = get_reader("scannet")
-    cfg = {"min_visible_objects": 0, "max_width": 640}
+    cfg = {"min_visible_objects": 0, "max_width": 640, "unlabelled_stand_ins": False}  # annotated objects only
     frames = [view_to_frame(r.read(root, v, cfg), cfg) for v in r.views(root, cfg)]
     truth = {o.id: o for fr in frames for o in fr.objects}
     objs, _ = fusion.finish(fusion.associate(_observations(frames, 0.03), 0.03, 0.25), 0.03, 1, 10, True)

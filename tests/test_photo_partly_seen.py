@@ -60,19 +60,20 @@ def test_measured_sources_keep_cut_objects_metric():
 
 
 def test_photo_recipes_do_not_compare_similar_sizes():
-    """Two bicycles 0.995 and 1.108 m tall: the default margin (10 %) asks "shorter than"; every photo
-    recipe's margin (larger >= 1.33x smaller) does not, and a clear gap (1.5x) is still asked."""
+    """Two bicycles 0.995 and 1.108 m tall: neither the default margin (30 %, larger >= 1.43x smaller; it was
+    10 % before the clear-margin rules) nor any photo recipe's (>= 1.67x) asks "shorter than"; a clear gap
+    (1.75x) is still asked."""
     fr, g = scene(
         ("bicycle", "red", box(-0.3, 0.5, (0.6, 0.2, 0.995))),
         ("bicycle", "blue", box(0.3, 0.5, (0.6, 0.2, 1.108))),
     )
-    assert evaluate(g, "short", 1, 2).holds is True
+    assert evaluate(g, "short", 1, 2).holds is None
     for name in ("image.yaml", "image_depth_anything.yaml", "photos.yaml"):
         th = yaml.safe_load((RECIPES / name).read_text())["graph"]["thresholds"]
         photo = geometry(fr, {"thresholds": th})
         assert evaluate(photo, "short", 1, 2).holds is None, name
         assert evaluate(photo, "tall", 2, 1).holds is None, name
         fr2, _ = scene(
-            ("bicycle", "red", box(-0.3, 0.5, (0.6, 0.2, 0.7))), ("bicycle", "blue", box(0.3, 0.5, (0.6, 0.2, 1.05)))
+            ("bicycle", "red", box(-0.3, 0.5, (0.6, 0.2, 0.6))), ("bicycle", "blue", box(0.3, 0.5, (0.6, 0.2, 1.05)))
         )
         assert evaluate(geometry(fr2, {"thresholds": th}), "short", 1, 2).holds is True, name

@@ -206,8 +206,8 @@ def test_graph_section_keys_and_thresholds_are_checked(tmp_path):
     base = pathlib.Path("recipes/image.yaml").read_text().replace("templates/", tpl)
     bad = {
         "graph:\n  thresholds:": "graph:\n  treshold: 1\n  thresholds:",
-        "size_margin_rel: 0.25": "size_margin_rel: wide",
-        "volume_margin_rel: 0.5": "volume_margn_rel: 0.5",
+        "size_margin_rel: 0.4": "size_margin_rel: wide",
+        "volume_margin_rel: 0.65": "volume_margn_rel: 0.65",
     }
     for old, new in bad.items():
         assert old in base
@@ -217,4 +217,4 @@ def test_graph_section_keys_and_thresholds_are_checked(tmp_path):
             load_recipe(str(p))
         assert "graph" in str(e.value) and "r.yaml:" in str(e.value), str(e.value)
     p.write_text(base)
-    assert load_recipe(str(p)).graph["thresholds"]["size_margin_rel"] == 0.25
+    assert load_recipe(str(p)).graph["thresholds"]["size_margin_rel"] == 0.4

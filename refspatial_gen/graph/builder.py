@@ -93,6 +93,7 @@ def make_nodes(geom: SceneGeom) -> list[Node]:
         attrs = {
             "color": geom.colours[i],
             "color_from": geom.colour_how[i],
+            "color_lab": None if geom.colour_lab[i] is None else list(geom.colour_lab[i]),
             "center": _exact(geom.centers[i]),
             "size": _r(geom.boxes[i].size, 4),
             "height": float(geom.height[i]),

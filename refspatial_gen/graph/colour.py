@@ -195,6 +195,26 @@ def colour_word(
     return None, "margin"
 
 
+def colour_lab(rgb_pixels: np.ndarray, white: float = 1.0) -> tuple[float, float, float] | None:
+    """The object's colour as one CIELAB point: the per-channel median of its unshaded pixels (the pixels
+    `colour_shares` names). Why: two objects can get different basic terms while looking alike (a tan
+    basket "brown", a light one "white" beside a "gray" one); a colour word may only tell two objects apart
+    when their colours are also far apart (`distinct_colours`). None with too few pixels."""
+    px = np.asarray(rgb_pixels, np.uint8)
+    if len(px) < MIN_PIXELS:
+        return None
+    if len(px) > MAX_PIXELS:
+        px = px[:: int(np.ceil(len(px) / MAX_PIXELS))]
+    lab = _lab(unshade(px, white).astype(np.float32) / 255.0)
+    med = np.median(lab, axis=0)
+    return (round(float(med[0]), 2), round(float(med[1]), 2), round(float(med[2]), 2))
+
+
+def delta_e(a: tuple[float, float, float] | list[float], b: tuple[float, float, float] | list[float]) -> float:
+    """CIE76 colour difference (Euclidean distance in CIELAB)."""
+    return float(np.sqrt(sum((float(x) - float(y)) ** 2 for x, y in zip(a, b))))
+
+
 def mask_pixels(rgb: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """sRGB pixels of the mask's interior (eroded by one pixel when enough remain, to skip edges mixed
     with the background), thinned to at most MAX_PIXELS as `colour_shares` thins them."""

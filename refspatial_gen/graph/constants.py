@@ -64,10 +64,26 @@ class Thresholds:
     # runner-up; below either the object gets no colour word (counted as colour_unnamed_margin)
     colour_min_share: float = 0.5
     colour_margin: float = 0.2
+    # a colour word names an object only when every other object of its category has a confident, different
+    # word AND a colour at least this far in CIELAB (CIE76; graph/phrases.py, graph/resolve.py)
+    colour_min_delta_e: float = 20.0
     # between (graph/relations/containment.py): undecided bands outside the decided region, so "not
     # between" is only said clearly off the segment (t < m - band, t > 1 - m + band, or off by corridor + band)
     between_t_band: float = 0.10
     between_corridor_band: float = 0.15
+    # clear margins a person can see (audit round 2: relations decided on differences too small to see).
+    # left/right and above/below in the image: the mask centroids must be apart by this fraction of the image
+    # side (width for left/right, height for above/below) ...
+    image_clear_margin: float = 0.05
+    # ... and by this share of the narrower mask's width (left/right) or the shorter mask's height (above/below):
+    # a tray lying in front of two others and overlapping both is neither left nor right of them
+    image_extent_share: float = 0.5
+    # front/behind (nearest-face depths): the farther must exceed the nearer by this fraction of the farther,
+    # on top of depth_margin
+    depth_margin_rel: float = 0.10
+    # close/far to an anchor: the larger surface distance must exceed the smaller by this fraction of the larger,
+    # on top of distance_margin
+    distance_margin_rel: float = 0.20
 
     def to_json(self) -> dict[str, float]:
         return {k: round(float(v), 6) for k, v in sorted(asdict(self).items())}
@@ -80,15 +96,15 @@ TABLETOP = Thresholds(
     vertical_margin=0.03,
     stack_tolerance=0.01,
     height_margin_abs=0.01,
-    size_margin_rel=0.10,
-    volume_margin_rel=0.20,
+    size_margin_rel=0.30,
+    volume_margin_rel=0.50,
     width_margin_abs=0.01,
     distance_margin=0.02,
     touch_distance=0.01,
     touch_band=0.01,
     next_to_distance=0.08,
     far_from_distance=0.30,
-    far_from_band=0.05,
+    far_from_band=0.10,
     quantity_tolerance=0.15,
     inside_fraction=0.30,
     inside_band=0.10,
@@ -121,15 +137,15 @@ ROOM = Thresholds(
     vertical_margin=0.10,
     stack_tolerance=0.05,
     height_margin_abs=0.05,
-    size_margin_rel=0.10,
-    volume_margin_rel=0.20,
+    size_margin_rel=0.30,
+    volume_margin_rel=0.50,
     width_margin_abs=0.05,
     distance_margin=0.10,
     touch_distance=0.05,
     touch_band=0.05,
     next_to_distance=0.50,
-    far_from_distance=1.00,
-    far_from_band=0.15,
+    far_from_distance=2.00,
+    far_from_band=0.50,
     quantity_tolerance=0.15,
     inside_fraction=0.30,
     inside_band=0.10,
@@ -163,10 +179,26 @@ NOISY_TOUCH_BAND = 0.05
 
 PRESETS = {"tabletop": TABLETOP, "room": ROOM}
 
+# Photos (the image source): sizes, depths and distances come from a single-view lift (a fitted camera height
+# or a depth model), good to tens of percent, so every comparison of them needs a wider clear margin (audit
+# round 2: two adult bicycles lifted 0.856 vs 0.863 m "thinnest"; bicycles 9.8 and 10.0 m away ordered;
+# elephants "smaller"). Raised to at least these values; a recipe override of a field still wins.
+PHOTO_SOURCES = ("image",)
+PHOTO_FLOORS = {
+    "size_margin_rel": 0.40,  # the larger at least 1.67x the smaller (height, width)
+    "volume_margin_rel": 0.65,  # volumes: about 3x
+    "depth_margin_rel": 0.20,  # the farther at least 1.25x the nearer
+    "distance_margin_rel": 0.30,  # close/far to an anchor: 1.43x
+    "far_from_band": 0.75,  # rooms: "far" beyond 2.75 m, "not far" within 1.25 m
+}
+
 
 def thresholds_for(scale: str, source: str, overrides: dict[str, Any] | None = None) -> Thresholds:
-    """The preset for `scale`, adjusted for the source's noise, with recipe overrides applied."""
+    """The preset for `scale`, adjusted for the source's noise (photos: PHOTO_FLOORS), with recipe overrides
+    applied (a graph stores every field, so building from its stored values gives the same thresholds)."""
     t = PRESETS[scale]
+    if source.split(":")[0] in PHOTO_SOURCES:
+        t = replace(t, **{k: max(getattr(t, k), v) for k, v in PHOTO_FLOORS.items()})
     if source.split(":")[0] in NOISY_SOURCES:
         t = replace(
             t,

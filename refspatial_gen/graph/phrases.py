@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from refspatial_gen.graph.colour import delta_e
 from refspatial_gen.graph.relations import directions, sizes
 from refspatial_gen.graph.relations.common import FALSE, TRUE
 from refspatial_gen.graph.scene import SceneGeom
@@ -22,10 +23,26 @@ from refspatial_gen.graph.support import get_supports
 
 ORDINAL_WORDS = {2: "second", 3: "third"}
 MAX_PHRASES = 8
+ANCHORED_WORDS = (" closest to ", " farthest from ", " on ")  # phrases that name the object through another
+
+
+def anchored(phrase: str) -> bool:
+    """True for a phrase that names its object through another object or surface ("the basket closest to
+    the orange", "the cup on the tray"): inside another phrase's relative clause it nests a second clause."""
+    p = f" {phrase} "
+    return any(w in p for w in ANCHORED_WORDS)
+
+
+# categories whose own name is a word the questions use for something else: "the camera" is also the viewpoint
+# ("closest to the camera", "from the camera"), so the simulated catalog's camera is called a photo camera
+# wherever a question or phrase names it (graph/resolve.py parses the same names)
+DISPLAY_NAMES = {"camera": "photo camera"}
 
 
 def display_category(cat: str) -> str:
-    return cat.replace("_", " ").strip().lower()
+    """The category as questions and phrases name it."""
+    c = " ".join(cat.replace("_", " ").lower().split())
+    return DISPLAY_NAMES.get(c, c)
 
 
 def _extreme(codes: np.ndarray, i: int, group: list[int]) -> bool:
@@ -108,6 +125,25 @@ def _group_phrases(geom: SceneGeom, group: list[int], noun: str, out: dict[int, 
                 out[i].append((pri_d, f"the {ORDINAL_WORDS[k - r + 1]} farthest {noun}"))
 
 
+def colour_sets_apart(geom: SceneGeom, sub: list[int], members: list[int]) -> str | None:
+    """Whether the colour word shared by `sub` singles them out among `members` (same category, hidden and
+    faint ones included: a viewer may still see them), or why not: every other member needs a confident
+    colour word of its own ("colour_phrase_other_unnamed"; round 2: a tan basket was "the brown basket" because
+    the obviously brown one was below the namer's margin) that is also far in CIELAB from every member of
+    `sub` ("colour_phrase_too_close": beige vs brown, white vs light gray), and `sub` its measured colours."""
+    cols, labs = geom.colours, geom.colour_lab
+    if any(labs[i] is None for i in sub):
+        return "colour_phrase_other_unnamed"
+    for j in members:
+        if j in sub:
+            continue
+        if cols[j] is None or labs[j] is None:
+            return "colour_phrase_other_unnamed"
+        if any(delta_e(labs[i], labs[j]) < geom.th.colour_min_delta_e for i in sub):  # type: ignore[arg-type]
+            return "colour_phrase_too_close"
+    return None
+
+
 def make_phrases(geom: SceneGeom) -> list[list[str]]:
     """Phrases per object position, shortest first (ties: axis of largest spread, then alphabetical)."""
     n = geom.n
@@ -118,22 +154,28 @@ def make_phrases(geom: SceneGeom) -> list[list[str]]:
     for i in range(n):
         by_cat.setdefault(cats[i], []).append(i)
     simple: dict[int, str] = {}  # anchor phrases (visible objects only): category or colour + category
+    truth = geom.cache.setdefault("truth", {})
     for cat, members in sorted(by_cat.items()):
         if len(members) == 1:
             out[members[0]].append((0, f"the {cat}"))
             if geom.points[members[0]] is not None:
                 simple[members[0]] = f"the {cat}"
-        for i in members:
-            if cols[i] is not None and sum(cols[j] == cols[i] for j in members) == 1:
-                out[i].append((0, f"the {cols[i]} {cat}"))
-                if geom.points[i] is not None:
-                    simple.setdefault(i, f"the {cols[i]} {cat}")
-        _group_phrases(geom, members, cat, out)
         for col in sorted({c for c in (cols[i] for i in members) if c is not None}):
             sub = [i for i in members if cols[i] == col]
-            # a colour subgroup phrase must also beat same-category objects whose colour is unknown
-            if len(sub) >= 2 and all(cols[i] is not None for i in members):
+            why = colour_sets_apart(geom, sub, members)
+            if why is not None:
+                lost = sum(geom.points[i] is not None for i in sub)  # visible objects that lose the word
+                if len(members) > 1 and lost:  # a lone object needs no colour word: not counted
+                    truth[why] = truth.get(why, 0) + lost
+                continue
+            if len(sub) == 1:
+                i = sub[0]
+                out[i].append((0, f"the {col} {cat}"))
+                if geom.points[i] is not None:
+                    simple.setdefault(i, f"the {col} {cat}")
+            elif len(sub) < len(members):  # "the leftmost brown basket" when every basket is brown: a false contrast
                 _group_phrases(geom, sub, f"{col} {cat}", out)
+        _group_phrases(geom, members, cat, out)
     _anchor_phrases(geom, by_cat, cats, simple, out)
     result = []
     for i in range(n):
@@ -158,6 +200,7 @@ def _anchor_phrases(
         return
     d = geom.surface_distance
     m = geom.th.anchor_distance_margin
+    rel = geom.th.distance_margin_rel  # the winner must also beat the runner-up by this share (a visible gap)
     supports, _ = get_supports(geom)
     surf_names = {s.id: (s.name or f"the {s.kind}") for s in geom.surfaces}
     for cat, members in sorted(by_cat.items()):
@@ -169,9 +212,10 @@ def _anchor_phrases(
             da = d[members, a]
             for k, i in enumerate(members):
                 others = np.delete(da, k)
-                if da[k] + m < others.min():
+                lo, hi = float(others.min()), float(others.max())
+                if da[k] + max(m, rel * lo) < lo:
                     out[i].append((3, f"the {cat} closest to {simple[a]}"))
-                if da[k] - m > others.max():
+                if da[k] - max(m, rel * da[k]) > hi:
                     out[i].append((3, f"the {cat} farthest from {simple[a]}"))
         for i in members:
             s = supports[i]

@@ -20,6 +20,7 @@ import numpy as np
 
 from refspatial_gen.core.geometry import Box3D, box_distance
 from refspatial_gen.core.model import Frame, SceneGraph
+from refspatial_gen.graph.phrases import DISPLAY_NAMES
 
 SUPERLATIVES = {  # word -> (feature, pick the largest?)
     "tallest": ("height", True),
@@ -42,6 +43,7 @@ class _Scene:
     ids: list[int]
     cats: list[str]
     colours: list[str | None]
+    labs: list[Any]  # measured CIELAB colour per object (None: too few pixels or not measured)
     feats: dict[str, np.ndarray]  # img_x, near, height, volume
     tol: dict[str, float]
     surfaces: dict[str, tuple[float, Any]]  # name -> (top z, the surface box; None from a stored graph)
@@ -50,7 +52,8 @@ class _Scene:
 
 
 def _norm(cat: str) -> str:
-    return cat.replace("_", " ").strip().lower()
+    c = " ".join(cat.replace("_", " ").lower().split())
+    return DISPLAY_NAMES.get(c, c)  # the names phrases use (data shared with the generator, like thresholds)
 
 
 def _tolerances(th: dict[str, Any]) -> dict[str, float]:
@@ -61,13 +64,15 @@ def _tolerances(th: dict[str, Any]) -> dict[str, float]:
         "height_rel": th["size_margin_rel"] / 2,
         "volume_rel": th["volume_margin_rel"] / 2,
         "dist": th["anchor_distance_margin"] / 2,
+        "dist_rel": th.get("distance_margin_rel", 0.0) / 2,
+        "colour_de": th.get("colour_min_delta_e", 20.0),  # no slack: both sides measure the same pixels
         "support_gap": th["support_gap"],
     }
 
 
 def _from_frame(frame: Frame) -> _Scene:
     from refspatial_gen.graph.builder import decide_scale
-    from refspatial_gen.graph.colour import colour_word, image_white, mask_pixels
+    from refspatial_gen.graph.colour import colour_lab, colour_word, image_white, mask_pixels
     from refspatial_gen.graph.constants import thresholds_for
     from refspatial_gen.graph.gravity import resolve_gravity
 
@@ -75,7 +80,7 @@ def _from_frame(frame: Frame) -> _Scene:
     G = resolve_gravity(frame).rotation
     cam = frame.camera
     boxes = [Box3D(G @ o.box.center, o.box.size, G @ o.box.rotation) for o in frame.objects]
-    img_x, near, cols = [], [], []
+    img_x, near, cols, labs = [], [], [], []
     white = image_white(frame.rgb)
     for o in frame.objects:
         m = o.mask.decode() if o.mask is not None else None
@@ -84,6 +89,7 @@ def _from_frame(frame: Frame) -> _Scene:
             ys, xs = np.nonzero(m)  # the mask's bounding box, as the scene graph crops it
             crop = (slice(ys.min(), ys.max() + 1), slice(xs.min(), xs.max() + 1))
             px = mask_pixels(frame.rgb[crop], m[crop])
+            labs.append(colour_lab(px, white))
             cols.append(
                 colour_word(
                     px, o.attributes.get("color"), o.category, th["colour_min_share"], th["colour_margin"], white
@@ -93,6 +99,7 @@ def _from_frame(frame: Frame) -> _Scene:
             uv, _ = cam.project(o.box.center[None])
             img_x.append((uv[0, 0] + 0.5) / cam.width)
             cols.append(None)
+            labs.append(None)
         near.append(cam.world_to_cam(o.box.corners())[:, 2].min())
     feats = {
         "img_x": np.array(img_x),
@@ -128,6 +135,7 @@ def _from_frame(frame: Frame) -> _Scene:
         [o.id for o in frame.objects],
         [_norm(o.category) for o in frame.objects],
         cols,
+        labs,
         feats,
         _tolerances(th),
         surfaces,
@@ -166,6 +174,7 @@ def _from_graph(graph: SceneGraph) -> _Scene:
         ids,
         [_norm(n.category) for n in nodes],
         [x.get("color") for x in a],
+        [x.get("color_lab") for x in a],
         feats,
         _tolerances(th),
         {name: (0.0, None) for name in by_name},
@@ -174,15 +183,34 @@ def _from_graph(graph: SceneGraph) -> _Scene:
     )
 
 
+class _Unresolved(list):  # type: ignore[type-arg]
+    """Every object of the category: a colour word that does not set its objects apart means any of them."""
+
+
 def _base(sc: _Scene, text: str) -> list[int] | None:
-    """Objects matching "[colour] category"; None when the text is not such a phrase."""
+    """Objects matching "[colour] category"; None when the text is not such a phrase. A colour word counts
+    only when every other object of the category has its own colour word and a colour at least
+    `colour_min_delta_e` away (CIE76) from each matching object; else every object of the category
+    (`_Unresolved`: the phrase fits them all)."""
     cats = set(sc.cats)
     if text in cats:
         return [i for i in range(len(sc.ids)) if sc.cats[i] == text]
     head, _, rest = text.partition(" ")
-    if rest in cats:
-        return [i for i in range(len(sc.ids)) if sc.cats[i] == rest and sc.colours[i] == head]
-    return None
+    if rest not in cats:
+        return None
+    same = [i for i in range(len(sc.ids)) if sc.cats[i] == rest]
+    hit = [i for i in same if sc.colours[i] == head]
+    if not hit:
+        return hit
+    for j in same:
+        if j in hit:
+            continue
+        if sc.colours[j] is None or sc.labs[j] is None or any(sc.labs[i] is None for i in hit):
+            return _Unresolved(same)
+        lj = np.asarray(sc.labs[j], float)
+        if min(float(np.linalg.norm(np.asarray(sc.labs[i], float) - lj)) for i in hit) < sc.tol["colour_de"]:
+            return _Unresolved(same)
+    return hit
 
 
 def _within(values: np.ndarray, target: float, tol: np.ndarray | float) -> np.ndarray:
@@ -214,6 +242,8 @@ def _resolve(sc: _Scene, phrase: str) -> list[int]:
     body = p[4:]
     m = _REL.match(body)
     if m and (members := _base(sc, m["base"])) is not None:
+        if isinstance(members, _Unresolved):
+            return list(members)
         anchor_text = m["anchor"]
         if m["rel"] == "on" and anchor_text in sc.surfaces:
             return [i for i in members if sc.on(i, ("surface", anchor_text))]
@@ -228,15 +258,22 @@ def _resolve(sc: _Scene, phrase: str) -> list[int]:
         if not len(d):
             return []
         target = d.min() if m["rel"] == "closest to" else d.max()
-        return [members[k] for k in np.flatnonzero(_within(d, target, sc.tol["dist"]))]
+        tol = np.maximum(sc.tol["dist"], sc.tol["dist_rel"] * np.maximum(d, target))  # the generator's relative gap
+        return [members[k] for k in np.flatnonzero(_within(d, target, tol))]
     m = _ORD_SIDE.match(body)
     if m and (base := _base(sc, m["base"])) is not None:
+        if isinstance(base, _Unresolved):
+            return list(base)
         return _superlative(sc, base, "img_x", m["side"] == "right", ORDINALS[m["ord"]])
     m = _ORD_DEPTH.match(body)
     if m and (base := _base(sc, m["base"])) is not None:
+        if isinstance(base, _Unresolved):
+            return list(base)
         return _superlative(sc, base, "near", m["dir"] == "farthest", ORDINALS[m["ord"]])
     head, _, rest = body.partition(" ")
     if head in SUPERLATIVES and (base := _base(sc, rest)) is not None:
+        if isinstance(base, _Unresolved):
+            return list(base)
         feat, largest = SUPERLATIVES[head]
         return _superlative(sc, base, feat, largest)
     members = _base(sc, body)

@@ -18,7 +18,7 @@ import numpy as np
 from refspatial_gen.core.geometry import Box3D, box_distance
 from refspatial_gen.core.mask import answer_pixel, denormalise_point, normalise_point
 from refspatial_gen.core.model import Frame, SupportSurface
-from refspatial_gen.graph.colour import colour_word, image_white, mask_pixels
+from refspatial_gen.graph.colour import colour_lab, colour_word, image_white, mask_pixels
 from refspatial_gen.graph.constants import Thresholds
 from refspatial_gen.graph.gravity import Gravity
 
@@ -155,9 +155,11 @@ class SceneGeom:
         self.mask_area = np.zeros(n, dtype=np.int64)
         self.img_centroid = np.full((n, 2), np.nan)  # normalised
         self.img_rows = np.full((n, 2), np.nan)  # normalised top and bottom rows of the visible mask
+        self.img_cols = np.full((n, 2), np.nan)  # normalised left and right columns of the visible mask
         self.points: list[tuple[float, float] | None] = [None] * n
         self.colours: list[str | None] = [None] * n
         self.colour_how: list[str] = ["no_mask"] * n
+        self.colour_lab: list[tuple[float, float, float] | None] = [None] * n  # graph/phrases.py: colour words
         self.mask_depth = np.full(n, np.nan)
         self.mask_depth_spread = np.full(n, np.nan)
         depth = self.frame.depth
@@ -173,9 +175,12 @@ class SceneGeom:
             self.mask_area[i] = len(xs)
             self.img_centroid[i] = ((xs.mean() + x0 + 0.5) / W, (ys.mean() + y0 + 0.5) / H)
             self.img_rows[i] = (y0 / H, y1 / H)
+            self.img_cols[i] = (x0 / W, x1 / W)
             self.points[i] = valid_point(m, x0, y0, W, H)
+            px = mask_pixels(rgb[y0:y1, x0:x1], m)
+            self.colour_lab[i] = colour_lab(px, white)
             self.colours[i], self.colour_how[i] = colour_word(
-                mask_pixels(rgb[y0:y1, x0:x1], m),
+                px,
                 o.attributes.get("color"),
                 o.category,
                 self.th.colour_min_share,

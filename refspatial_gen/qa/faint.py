@@ -13,6 +13,8 @@ on the scene without the faint objects (every object without an answer point) an
   metric_withheld        a distance / depth / size value or a size comparison involves an object whose
                          category has no size range or whose lifted size is implausible, or a frame whose
                          metric scale is unverified (node attribute `metric: false`)
+  position_contact_unseen, size_same_category, incomplete_category_claim
+                         photos only: qa/faint_photo.py
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from typing import Any
 
 from refspatial_gen.core.model import QAPair, SceneGraph
 from refspatial_gen.graph.relations import REGISTRY
+from refspatial_gen.qa.faint_photo import photo_withhold
 from refspatial_gen.qa.index import Reject, SceneIndex
 from refspatial_gen.qa.program import Template
 from refspatial_gen.qa.values import Context, NumberValue, OptionValue, PointValue
@@ -121,4 +124,7 @@ def withhold(t: Template, env: dict[str, Any], ctx: Context, qa: QAPair) -> str 
     """The reason this finished pair must not be emitted (counted in sample.meta["truth"]), or None."""
     if not metric_ok(t, env, ctx, qa):
         return METRIC
+    why = photo_withhold(qa, ctx.idx.frame)  # photos: position, same-category size, incomplete categories
+    if why is not None:
+        return why
     return same_without_faint(t, env, ctx)

@@ -19,6 +19,7 @@ from refspatial_gen.qa.config import QAConfig
 from refspatial_gen.qa.executor import Search, degenerate_steps, slot_candidates
 from refspatial_gen.qa.faint import withhold
 from refspatial_gen.qa.index import Reject, SceneIndex
+from refspatial_gen.qa.nesting import nested_phrase
 from refspatial_gen.qa.ops.base import BOOL, OBJECT
 from refspatial_gen.qa.program import Template
 from refspatial_gen.qa.recognisable import withhold_cut
@@ -294,6 +295,10 @@ def _instantiate(
         if key in seen:
             return None
         if degenerate_steps(t, env, ctx):
+            return None
+        if (why := nested_phrase(t, env, ctx)) is not None:
+            if truth is not None:
+                truth[why] = truth.get(why, 0) + 1
             return None
         try:
             extra = _bind_text_only(t, env, ctx)

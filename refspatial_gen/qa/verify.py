@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
@@ -19,6 +19,9 @@ import numpy as np
 from refspatial_gen.core.mask import denormalise_point
 from refspatial_gen.core.model import Frame, FreeSpaceRegion, QAPair, Sample, SceneGraph
 from refspatial_gen.qa.ops import OPS
+from refspatial_gen.qa.verify_nesting import check_nesting
+from refspatial_gen.qa.verify_nesting import walk as _walk
+from refspatial_gen.qa.verify_photo import check_photo
 from refspatial_gen.qa.verify_truth import check_truth
 from refspatial_gen.qa.verify_units import LENGTHS, check_length_text, check_size_step
 from refspatial_gen.qa.verify_world import ANGLE_TOL, LENGTH_ABS_TOL, LENGTH_REL_TOL, Fail, Run, Undecided, World, _size
@@ -120,6 +123,7 @@ def verify_qa(
         problems += _check_answer(qa, final, w, frame, graph)
     problems += _check_marks(qa, w, order if order is not None else list(frames))
     problems += check_truth(qa, frames, graphs)  # visibility floor, phrases without faint objects, metric trust
+    problems += check_photo(qa, frame)  # photo rules: unseen feet, same-category sizes, incomplete categories
     # --- trace and key steps
     problems += _check_trace(qa, w)
     return problems
@@ -146,17 +150,8 @@ def _check_phrases(qa: QAPair, graph: SceneGraph, frame: Frame) -> list[str]:
                     )
                 if v["phrase"].lower() not in q:
                     out.append(f"phrase {v['phrase']!r} does not appear in the question")
+    out += check_nesting(qa)
     return out
-
-
-def _walk(x: Any) -> Iterator[dict[str, Any]]:
-    if isinstance(x, dict):
-        yield x
-        for v in x.values():
-            yield from _walk(v)
-    elif isinstance(x, list):
-        for v in x:
-            yield from _walk(v)
 
 
 def _check_answer(qa: QAPair, final: Any, w: World, frame: Frame, graph: SceneGraph) -> list[str]:
@@ -270,8 +265,6 @@ def _check_number(qa: QAPair, s: dict[str, Any], final: Any) -> list[str]:
 def _check_marks(qa: QAPair, w: World, order: list[str]) -> list[str]:
     """Drawn marks belong on the asked image: each names the position of the QA's frame in the sample, an
     object of that frame, its 2D box as stored, and (when given) a point inside that object's visible mask."""
-    from refspatial_gen.core.mask import denormalise_point
-
     out: list[str] = []
     W, H = w.frame.camera.width, w.frame.camera.height
     for m in (qa.answer_struct or {}).get("marks") or []:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from refspatial_gen.graph.phrases import display_category
 from refspatial_gen.qa import lexicon
 from refspatial_gen.qa.index import Reject, SceneIndex
 from refspatial_gen.qa.program import Template
@@ -71,7 +72,7 @@ class Renderer:
         idx = self.ctx.idx
         if s.type in ("object", "anchor"):
             if form == "category":
-                return idx.category[v]
+                return display_category(idx.category[v])
             if form == "color":
                 return idx.color.get(v) or ""
             return idx.phrase[v]
@@ -121,7 +122,7 @@ class Renderer:
         itself the category of an object in the frame."""
         syn = lexicon.category_synonyms(category)
         if not syn or self.rng.random() < 0.5:
-            return category
+            return display_category(category)
         cats = set(self.ctx.idx.category.values())
         ok = [w for w in syn if w not in cats]
-        return ok[int(self.rng.integers(len(ok)))] if ok else category
+        return ok[int(self.rng.integers(len(ok)))] if ok else display_category(category)

@@ -71,6 +71,15 @@ def pos(geom: SceneGeom, object_id: Any) -> int:
         raise KeyError(f"frame {geom.frame.frame_id} has no object {object_id!r}") from None
 
 
+def count(geom: SceneGeom, reason: str, mask: np.ndarray) -> None:
+    """Add the unordered pairs of `mask` (an (n, n) bool matrix, either order counting once) to
+    graph.meta["truth"][reason]: pairs a clear-margin rule made undecided (run report, "Truth checks")."""
+    n = int(np.count_nonzero(np.triu(mask | mask.T, 1)))
+    if n:
+        truth = geom.cache.setdefault("truth", {})
+        truth[reason] = truth.get(reason, 0) + n
+
+
 def cached(geom: SceneGeom, key: str, fn: Callable[[SceneGeom], Any]) -> Any:
     if key not in geom.cache:
         geom.cache[key] = fn(geom)

@@ -21,6 +21,7 @@ from refspatial_gen.graph.relations.common import (
     UNDECIDED,
     Matrices,
     cached,
+    count,
     decide_matrix,
     pair_evaluator,
     pair_facts,
@@ -42,7 +43,26 @@ def overlapping(geom: SceneGeom, axis: int) -> np.ndarray:
     return (common > OVERLAP_SHARE * np.minimum(ext[:, None], ext[None, :])) & (np.maximum(fp, fp.T) > 0)
 
 
+def image_gap(geom: SceneGeom, axis: int, floor: float) -> np.ndarray:
+    """[i, j]: the separation the two image centroids need along image `axis` (0 x, 1 y) for a person to see
+    the order: `image_extent_share` of the smaller of the two masks' extents along the axis and, where the
+    extents overlap (one object in front of the other), at least `floor` (a fraction of the image side).
+    Masks side by side (disjoint extents) show their order however small they are; an object without a
+    mask needs the floor."""
+    span = geom.img_cols if axis == 0 else geom.img_rows
+    lo, hi = span[:, 0], span[:, 1]
+    with np.errstate(invalid="ignore"):
+        smaller = np.fmin((hi - lo)[:, None], (hi - lo)[None, :])
+        apart = (np.minimum(hi[:, None], hi[None, :]) - np.maximum(lo[:, None], lo[None, :])) <= 0
+        need = np.where(apart, 0.0, floor)  # NaN extents compare False: not apart, the floor applies
+        return np.fmax(need, geom.th.image_extent_share * smaller)
+
+
 def _lateral(geom: SceneGeom) -> Matrices:
+    """Camera-frame centres decide with the metric margin; the image must agree and show the order clearly:
+    centroids apart by image_extent_share of the narrower mask and, where the masks' columns overlap, by
+    image_clear_margin of the width (a tray lying in front of two others and overlapping both is neither left
+    nor right of them; a box 2% of the width left of the box behind it is not "left of" it: audit round 2)."""
     x = geom.cam_centers[:, 0]
     u = geom.img_centroid[:, 0]
     v = x[None, :] - x[:, None]  # v[i, j] > 0: i is left of j
@@ -50,17 +70,26 @@ def _lateral(geom: SceneGeom) -> Matrices:
     codes = decide_matrix(v, geom.th.lateral_margin)
     disagree = (np.sign(du) != np.sign(v)) | (np.abs(du) < 0.5 * geom.th.image_margin)
     codes[disagree | overlapping(geom, 0)] = UNDECIDED
+    unclear = (codes != UNDECIDED) & (np.abs(du) < image_gap(geom, 0, geom.th.image_clear_margin))
+    count(geom, "margin_image_lateral", unclear)
+    codes[unclear] = UNDECIDED
     return v, codes, geom.th.lateral_margin
 
 
 def _depthwise(geom: SceneGeom) -> Matrices:
+    """Nearest-face depths decide with depth_margin and, on top, a relative margin: the farther face at least
+    depth_margin_rel beyond the nearer (two bicycles at 9.8 and 10.0 m are not one "nearer": audit round 2)."""
     d = geom.near_depth
     v = d[None, :] - d[:, None]  # v[i, j] > 0: i nearer than j
     c = geom.center_depth
     vc = c[None, :] - c[:, None]
+    m = np.maximum(geom.th.depth_margin, geom.th.depth_margin_rel * np.maximum(np.abs(d[:, None]), np.abs(d[None, :])))
     codes = decide_matrix(v, geom.th.depth_margin)
     codes[(np.sign(vc) != np.sign(v)) | overlapping(geom, 2)] = UNDECIDED
-    return v, codes, geom.th.depth_margin
+    unclear = (codes != UNDECIDED) & (np.abs(v) <= m)
+    count(geom, "margin_depth_relative", unclear)
+    codes[unclear] = UNDECIDED
+    return v, codes, m
 
 
 def _image_vertical(geom: SceneGeom) -> Matrices:
@@ -76,6 +105,9 @@ def _image_vertical(geom: SceneGeom) -> Matrices:
         db = bottom[None, :] - bottom[:, None]
         known = np.isfinite(dt) & np.isfinite(db)
         codes[known & ((np.sign(dt) != np.sign(v)) | (np.sign(db) != np.sign(v)))] = UNDECIDED
+    unclear = (codes != UNDECIDED) & (np.abs(v) < image_gap(geom, 1, geom.th.image_clear_margin))
+    count(geom, "margin_image_vertical", unclear)
+    codes[unclear] = UNDECIDED
     return v, codes, geom.th.image_margin
 
 
@@ -135,46 +167,50 @@ _pair(
     "left",
     "cam",
     "camera-x of B's centre minus A's (m)",
-    "lateral_margin, image_margin",
-    "A's centre is left of B's in the camera frame by more than the margin, the image agrees and their "
-    "boxes do not overlap (footprints, half the shorter x extent)",
+    "lateral_margin, image_margin, image_clear_margin, image_extent_share",
+    "A's centre is left of B's in the camera frame by more than the margin, the image agrees with the mask "
+    "centroids clearly apart (image_extent_share of the narrower mask, and image_clear_margin of the width "
+    "where the masks' columns overlap) "
+    "and their boxes do not overlap (footprints, half the shorter x extent)",
 )
 _mirror(
     "right",
     "left",
     "cam",
     "camera-x of A's centre minus B's (m)",
-    "lateral_margin, image_margin",
+    "lateral_margin, image_margin, image_clear_margin, image_extent_share",
     "mirror of left: A's centre is right of B's",
 )
 _pair(
     "front",
     "cam",
     "nearest-face depth of B minus A's (m)",
-    "depth_margin",
-    "A's nearest face is nearer the camera than B's by the margin (centre depths agree, boxes do not overlap "
-    "(footprints, half the shorter depth extent))",
+    "depth_margin, depth_margin_rel",
+    "A's nearest face is nearer the camera than B's by the margin and by depth_margin_rel of the farther "
+    "(centre depths agree, boxes do not overlap (footprints, half the shorter depth extent))",
 )
 _mirror(
     "behind",
     "front",
     "cam",
     "nearest-face depth of A minus B's (m)",
-    "depth_margin",
+    "depth_margin, depth_margin_rel",
     "mirror of front: A is farther from the camera than B",
 )
 _pair(
     "above_image",
     "img",
     "image-y of B's mask centroid minus A's (fraction of height)",
-    "image_margin",
-    "A's 2D centre is higher in the image than B's",
+    "image_margin, image_clear_margin, image_extent_share",
+    "A's 2D centre is higher in the image than B's by image_extent_share of the shorter mask (and "
+    "image_clear_margin of the height where the masks' rows overlap), "
+    "the masks' top and bottom rows agreeing",
 )
 _mirror(
     "below_image",
     "above_image",
     "img",
     "image-y of A's mask centroid minus B's (fraction of height)",
-    "image_margin",
+    "image_margin, image_clear_margin, image_extent_share",
     "mirror of above (image): A's 2D centre is lower in the image",
 )

@@ -89,10 +89,38 @@ def _sym_eval(matrices: Callable[[SceneGeom], Matrices], rel: str) -> Callable[.
     return evaluate
 
 
-def close_value(d_ac: float, d_bc: float, margin: float) -> tuple[bool | None, float]:
-    """close(A, B, C): A is closer to C than B is; value = d(B, C) - d(A, C)."""
+def close_margin(d_ac: float, d_bc: float, th: Thresholds) -> float:
+    """The gap close/far need: distance_margin, and distance_margin_rel of the larger of the two distances (a
+    person cannot tell 1.9 m from 2.1 m: audit round 2)."""
+    return max(th.distance_margin, th.distance_margin_rel * max(d_ac, d_bc))
+
+
+def close_value(d_ac: float, d_bc: float, th: Thresholds) -> tuple[bool | None, float, float]:
+    """close(A, B, C): A is closer to C than B is; (decision, value = d(B, C) - d(A, C), margin)."""
     v = d_bc - d_ac
-    return decide(v, margin), v
+    m = close_margin(d_ac, d_bc, th)
+    return decide(v, m), v, m
+
+
+def _count_close(geom: SceneGeom) -> list[RelationFact]:
+    """Stores nothing (close/far are derived from stored distances); counts in graph.meta["truth"] the
+    (A, B, anchor) triples, A and B unordered, whose distances to the anchor differ by more than
+    distance_margin but not by distance_margin_rel of the larger (`distance_undecided_ratio`)."""
+    d = geom.surface_distance
+    n = geom.n
+    if n < 3:
+        return []
+    th = geom.th
+    dac, dbc = d[:, None, :], d[None, :, :]  # [a, b, c]
+    gap = np.abs(dbc - dac)
+    rel = (gap > th.distance_margin) & (gap <= th.distance_margin_rel * np.maximum(dac, dbc))
+    distinct = (np.arange(n)[:, None] < np.arange(n)[None, :])[:, :, None]
+    distinct = distinct & ~np.eye(n, dtype=bool)[:, None, :] & ~np.eye(n, dtype=bool)[None, :, :]
+    k = int(np.count_nonzero(rel & distinct & np.isfinite(dac) & np.isfinite(dbc)))
+    if k:
+        truth = geom.cache.setdefault("truth", {})
+        truth["distance_undecided_ratio"] = truth.get("distance_undecided_ratio", 0) + k
+    return []
 
 
 def _close_eval(mirror: bool) -> Callable[..., RelationFact]:
@@ -103,8 +131,8 @@ def _close_eval(mirror: bool) -> Callable[..., RelationFact]:
         if mirror:
             i, j = j, i
         d = geom.surface_distance
-        holds, v = close_value(d[i, k], d[j, k], geom.th.distance_margin)
-        return RelationFact("far" if mirror else "close", (a, b, c), holds, v, geom.th.distance_margin)
+        holds, v, m = close_value(float(d[i, k]), float(d[j, k]), geom.th)
+        return RelationFact("far" if mirror else "close", (a, b, c), holds, v, m)
 
     return evaluate
 
@@ -148,9 +176,8 @@ def _close_cell(t: RelationTables, args: tuple[Any, ...]) -> Cell | None:
     dac, dbc = d[a][c], d[b][c]
     if dac == _INF or dbc == _INF:
         return None
-    v = dbc - dac
-    m = t.th.distance_margin
-    return Cell(decide(v, m), v, m)
+    holds, v, m = close_value(dac, dbc, t.th)
+    return Cell(holds, v, m)
 
 
 _INF = float("inf")
@@ -161,12 +188,14 @@ register(
         "world",
         3,
         "d(B, C) minus d(A, C), surface distances (m)",
-        "distance_margin",
-        "A is closer to the anchor C than B is (nearest-surface distances)",
+        "distance_margin, distance_margin_rel",
+        "A is closer to the anchor C than B is (nearest-surface distances), by distance_margin and by "
+        "distance_margin_rel of the larger distance",
         storage="derived",
         needs=G,
         qa="anchored",
         evaluate=_close_eval(False),
+        stored=_count_close,
         cell=_close_cell,
     )
 )
@@ -177,7 +206,7 @@ register(
         "world",
         3,
         "d(A, C) minus d(B, C), surface distances (m)",
-        "distance_margin",
+        "distance_margin, distance_margin_rel",
         "mirror of close: A is farther from the anchor C than B is",
         storage="derived",
         mirror_of="close",
@@ -261,7 +290,7 @@ _contact(
     _far_from,
     lambda th: th.far_from_band,
     "far_from_distance, far_from_band",
-    "the objects' nearest surfaces are farther apart than the scene-scaled distance (0.3 m tabletop, 1 m room)",
+    "the objects' nearest surfaces are farther apart than the scene-scaled distance (0.3 m tabletop, 2 m room)",
 )
 _contact(
     "next_to",

@@ -9,8 +9,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from refspatial_gen.core.model import RelationFact
 from refspatial_gen.graph.relations.base import HOLDS_OF_CODE, T_MISSING, Cell, CellRule, Relation, Rows, register
-from refspatial_gen.graph.relations.common import Matrices, cached, decide_matrix, pair_evaluator
+from refspatial_gen.graph.relations.common import Matrices, cached, count, decide_matrix, pair_evaluator
 from refspatial_gen.graph.scene import SceneGeom
 
 if TYPE_CHECKING:
@@ -38,6 +39,22 @@ def _big(geom: SceneGeom) -> Matrices:
 
 def _wide(geom: SceneGeom) -> Matrices:
     return cached(geom, "size:wide", lambda g: compare(g.width, g.th.width_margin_abs, g.th.size_margin_rel))
+
+
+def _count_relative(geom: SceneGeom) -> list[RelationFact]:
+    """Stores nothing (sizes are derived from node attributes); counts in graph.meta["truth"] the pairs whose
+    difference clears the absolute margin but not the relative one (`size_undecided_ratio`: the larger is
+    not size_margin_rel / volume_margin_rel bigger, so no size word is given: audit round 2, four wine
+    glasses of about the same height, one called "the tallest")."""
+    th = geom.th
+    for q, absm, relm in (
+        (geom.height, th.height_margin_abs, th.size_margin_rel),
+        (geom.volume, 0.0, th.volume_margin_rel),
+        (geom.width, th.width_margin_abs, th.size_margin_rel),
+    ):
+        v = np.abs(q[:, None] - q[None, :])
+        count(geom, "size_undecided_ratio", (v > absm) & (v <= relm * np.maximum(q[:, None], q[None, :])))
+    return []
 
 
 # node attribute and thresholds each comparison reads (a stored graph derives these relations from them)
@@ -106,6 +123,7 @@ def _size(rid: str, value: str, margin: str, definition: str) -> None:
             qa="ordered",
             key_step="Size",
             evaluate=pair_evaluator(_MATRICES[rid], rid),
+            stored=_count_relative if rid == "tall" else None,
             cell=_cell(rid),
             table=_table(rid),
         )

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 from typing import Any
 
+from refspatial_gen.graph.constants import Thresholds
 from refspatial_gen.graph.relations import REGISTRY
+from refspatial_gen.graph.relations.distances import close_margin
 from refspatial_gen.qa.index import NO_FACT, Reject, SceneIndex
 from refspatial_gen.qa.program import Ref, Step, StepFn
 from refspatial_gen.qa.values import Context
@@ -132,7 +134,7 @@ def winner(cands: Any, rel: str, anchor: int | None, idx: SceneIndex) -> int:
     if is_anchored and anchor is not None:
         d = idx.distances_to(anchor, cands)
         if d is not None:
-            return nearest_winner(cands, d, REGISTRY[rel].mirror_of is not None, idx.distance_margin)
+            return nearest_winner(cands, d, REGISTRY[rel].mirror_of is not None, idx.tables.th)  # type: ignore[arg-type]
     # a quick elimination pass finds the only possible winner, then it is checked against everyone
     decision = idx.decision
 
@@ -162,15 +164,17 @@ def winner(cands: Any, rel: str, anchor: int | None, idx: SceneIndex) -> int:
     return best
 
 
-def nearest_winner(cands: list[int], d: list[float], farthest: bool, margin: float) -> int:
+def nearest_winner(cands: list[int], d: list[float], farthest: bool, th: Thresholds) -> int:
     """winner() for close/far from the distances of the candidates to the anchor: close(x, y, c) holds when
-    d(y, c) - d(x, c) > margin (far: the other way round), so the winner is the nearest (farthest) candidate,
-    and it wins only if it beats the runner-up by more than the margin. Same answer as the pairwise rule."""
+    d(y, c) - d(x, c) exceeds close_margin (distance_margin and distance_margin_rel of the larger; far: the
+    other way round), so the winner is the nearest (farthest) candidate, and it wins only if it beats the
+    runner-up by that margin (the runner-up is the hardest to beat). Same answer as the pairwise rule."""
     if len(cands) == 1:
         return cands[0]
     k = max(range(len(d)), key=d.__getitem__) if farthest else min(range(len(d)), key=d.__getitem__)
     best = d[k]
-    gap = min((best - v) if farthest else (v - best) for i, v in enumerate(d) if i != k)
-    if gap > margin:
+    runner = max(v for i, v in enumerate(d) if i != k) if farthest else min(v for i, v in enumerate(d) if i != k)
+    gap = (best - runner) if farthest else (runner - best)
+    if gap > close_margin(best, runner, th):
         return cands[k]
-    raise Reject("margin" if gap >= -margin else "no_winner")
+    raise Reject("margin")

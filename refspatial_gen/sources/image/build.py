@@ -3,7 +3,7 @@ camera fitted to its objects), gravity and the world frame, lifting, truth check
 
 Whole-image problems raise DropUnit with a reason (`image_undecodable`, `image_size_mismatch`,
 `annotation_out_of_bounds`, `annotation_size_mismatch`, `depth_size_mismatch`, `depth_missing`,
-`depth_not_metric`, `too_few_objects`, ...); single objects are dropped with a reason counted in
+`depth_not_metric`, `too_few_objects`, `image_composite`, ...); single objects are dropped with a reason counted in
 `Frame.meta["dropped_objects"]`.
 """
 
@@ -22,6 +22,7 @@ from refspatial_gen.core.mask import RLE
 from refspatial_gen.core.model import Frame, ObjectInstance
 from refspatial_gen.sources.image import filters as F
 from refspatial_gen.sources.image.annotations import Collection, ImageRecord, annotation_mask, read_panoptic_ids
+from refspatial_gen.sources.image.composite import raise_if_composite
 from refspatial_gen.sources.image.config import estimator_from_config, with_defaults
 from refspatial_gen.sources.image.intrinsics import Intrinsics, resolve_intrinsics
 from refspatial_gen.sources.image.keys import unit_key
@@ -73,6 +74,7 @@ def build_frame(
         raise DropUnit(
             "image_size_mismatch", f"{rec.file.name}: decoded {W}x{H}, annotation says {rec.width}x{rec.height}"
         )
+    raise_if_composite(rgb, float(cfg["composite_max_std"]), rec.file.name)  # a collage: DropUnit image_composite
     tm["decode"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -103,9 +105,16 @@ def build_frame(
     lift_candidates(ann.live, depth, cam, support_z, walls, cfg, est_name)
     final = _checked_objects(rec, ann, cfg, est_name, truth)
     objects = _objects(final, coll, res)
+    if est_name == "geometric":  # positions from the foot: flag objects whose foot is not seen
+        from refspatial_gen.sources.image.contact import mark_unseen
+
+        truth.update(mark_unseen(objects, H, float(cfg["foot_border_margin"])))
     surfaces = support_surfaces(grav, cam, depth, ann.ground, ann.support_stuff, final, objects, res, est_name)
     tm["lift"] = time.perf_counter() - t_lift
     meta = _frame_meta(rec, coll, intr, res, grav, ann, metric_scale, truth)
+    meta["incomplete_categories"] = F.incomplete_categories(rec.annotations, ann.crowd, cfg)
+    if est_name == "geometric":
+        meta["foot_border_margin"] = float(cfg["foot_border_margin"])
     fid = unit_key(rec.image_id)  # no folder name: a renamed or moved copy gives the same bytes
     return Frame(fid, rgb, depth, cam, objects, surfaces, source="image", scene_id=fid, meta=_jsonable(meta))
 

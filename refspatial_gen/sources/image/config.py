@@ -97,6 +97,34 @@ CONFIG_FIELDS: dict[str, Field] = {
         doc="geometric depth: two boxes sharing more of the smaller one's volume pass through "
         "each other; the occluded one is removed (1 = off)",
     ),
+    "composite_max_std": Field(
+        float,
+        default=3.0,
+        min=0.0,
+        max=255.0,
+        doc="drop a photo pasted from several (image_composite): an interior full-height/width band whose "
+        "colour spread (channel std, 0..255) stays below this (0 = off; sources/image/composite.py)",
+    ),
+    "foot_border_margin": Field(
+        float,
+        default=0.02,
+        min=0.0,
+        max=0.5,
+        doc="geometric depth: an object whose lowest mask row lies within this share of the height of the "
+        "bottom edge has no trusted 3D position (its foot may be cut; sources/image/contact.py)",
+    ),
+    "incomplete_min_instances": Field(
+        int,
+        default=6,
+        min=1,
+        doc="a category with this many annotated instances in a photo is not trusted complete: no "
+        "superlative, ordinal, count or unique reference over it (qa/faint_photo.py)",
+    ),
+    "incomplete_categories": Field(
+        list,
+        default=["person"],
+        doc="categories never trusted complete on photos (COCO leaves background people unannotated)",
+    ),
     "perception": perception_field(),  # unlabelled photos: annotations from local models (docs/perception.md)
 }
 

@@ -16,6 +16,7 @@ from refspatial_gen.sources.scan.gravity import fit_floor
 from refspatial_gen.sources.scan.splat import point_spacing, splat_depth
 from refspatial_gen.sources.scan.view import ScanBox, ScanView
 from refspatial_gen.sources.scan.visibility import object_visibility
+from refspatial_gen.truth.labels import UNRELIABLE, unreliable_label
 
 DEFAULTS: dict[str, Any] = {
     "occlusion_tolerance": 0.025,
@@ -30,6 +31,7 @@ DEFAULTS: dict[str, Any] = {
     "instance_labels": True,
     "withhold_unexplained_floor": True,
     "unexplained_min_points": 20,
+    "unlabelled_stand_ins": True,
 }
 
 SUPPORT_KINDS = {
@@ -177,6 +179,26 @@ def _withhold_unexplained(
     return withhold_floor(depth, cam, fps, floor_z)
 
 
+def _stand_ins(
+    view: ScanView,
+    cam: Camera,
+    depth: np.ndarray,
+    owner: np.ndarray | None,
+    objects: list[ObjectInstance],
+    floor_z: float | None,
+    config: dict[str, Any],
+) -> tuple[list[ObjectInstance], dict[str, int]]:
+    """The objects plus faint stand-ins for what the depth shows and no annotation explains and for what an
+    unreliable label's mask may show (unlabelled.py); blobs only with a known floor and when configured."""
+    from refspatial_gen.sources.scan.unlabelled import add_stand_ins, explained_pixels
+
+    label_map = instance_map(view, owner) if bool(cfg(config, "instance_labels")) else None
+    known = set(view.box_instance.values()) | set(view.meta.get("structural_instances", []))
+    boxes = [b.box for b in view.boxes]
+    use_floor = floor_z if bool(cfg(config, "unlabelled_stand_ins")) else None
+    return add_stand_ins(objects, cam, depth, boxes, use_floor, config, explained_pixels(label_map, known))
+
+
 def view_to_frame(view: ScanView, config: dict[str, Any]) -> Frame:
     """Check one view and turn it into a Frame with visible objects; raise DropUnit with a reason otherwise."""
     rgb, depth, cam, owner, meta = _checked_view(view, config)
@@ -185,15 +207,19 @@ def view_to_frame(view: ScanView, config: dict[str, Any]) -> Frame:
     meta["excluded_objects"] = excluded
     if len(objects) < int(cfg(config, "min_visible_objects")):
         raise DropUnit("too_few_visible_objects", f"{len(objects)} visible < {cfg(config, 'min_visible_objects')}")
-    surfaces: list[SupportSurface] = []
+    floor = None
     if cam.gravity_known:
-        floor, how = floor_surface(cam, depth, view.boxes)
-        meta["floor_source"] = how
-        if floor is not None:
-            surfaces.append(floor)
-            if view.points is not None and bool(cfg(config, "withhold_unexplained_floor")):
-                meta["unexplained_floor_pixels"] = _withhold_unexplained(view, cam, depth, floor.box.top_z, config)
-        surfaces.extend(object_surfaces(objects))
+        floor, meta["floor_source"] = floor_surface(cam, depth, view.boxes)
+    floor_z = None if floor is None else floor.box.top_z
+    objects, counts = _stand_ins(view, cam, depth, owner, objects, floor_z, config)
+    truth.update(counts)
+    surfaces: list[SupportSurface] = []
+    if floor_z is not None:
+        surfaces.append(floor)
+        if view.points is not None and bool(cfg(config, "withhold_unexplained_floor")):
+            meta["unexplained_floor_pixels"] = _withhold_unexplained(view, cam, depth, floor_z, config)
+    if cam.gravity_known:
+        surfaces.extend(object_surfaces([o for o in objects if not o.provenance.get("distractor_only")]))
     if truth:
         meta["truth"] = truth
     frame_id = f"scan/{view.reader}/{view.scene_id}/{view.view_id}"
@@ -338,6 +364,10 @@ def _objects(
                 truth["mask_of_other_instances"] = truth.get("mask_of_other_instances", 0) + 1
             continue
         ys, xs = np.nonzero(m)
+        vis_fraction = float(min(1.0, vis["visible_fraction"]))
+        why = unreliable_label(cat)
+        if why is not None:  # a distractor only: the visibility floor takes its phrase and answer point
+            truth[UNRELIABLE] = truth.get(UNRELIABLE, 0) + 1
         prov = {
             "source": "scan",
             "reader": view.reader,
@@ -350,6 +380,7 @@ def _objects(
             "fraction_method": vis["fraction_method"],
             **({"pixels_of_other_instances": trimmed, "instance": int(inst)} if inst is not None else {}),
             **sb.provenance,
+            **(why.provenance(vis_fraction) if why else {}),
         }
         objects.append(
             ObjectInstance(
@@ -358,7 +389,7 @@ def _objects(
                 box=sb.box,
                 mask=RLE.encode(m),
                 bbox2d=(float(xs.min()), float(ys.min()), float(xs.max() + 1), float(ys.max() + 1)),
-                visible_fraction=float(min(1.0, vis["visible_fraction"])),
+                visible_fraction=0.0 if why else vis_fraction,
                 name=sb.name,
                 attributes=dict(sb.attributes),
                 front=sb.front,

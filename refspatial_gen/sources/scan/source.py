@@ -52,6 +52,20 @@ CONFIG_FIELDS: dict[str, Field] = {
         doc="point clouds: unknown depth on the floor under unannotated things standing on it (no free space there)",
     ),
     "unexplained_min_points": Field(int, default=20, min=3, doc="low unexplained points that make such a footprint"),
+    "unlabelled_stand_ins": Field(
+        bool,
+        default=True,
+        doc="what the depth shows and no box explains becomes faint stand-ins (unlabelled.py)",
+    ),
+    "unlabelled_min_area": Field(
+        float, default=0.004, min=0.0, max=1.0, doc="share of the image an unlabelled blob covers"
+    ),
+    "unlabelled_min_extent": Field(float, default=0.15, min=0.0, doc="metres across an unlabelled blob reaches"),
+    "unlabelled_box_pad": Field(float, default=0.05, min=0.0, doc="metres round a box whose points it explains"),
+    "unlabelled_plane_extent": Field(
+        float, default=1.0, min=0.1, doc="metres: wider and taller planes are walls/ceilings"
+    ),
+    "unlabelled_link": Field(float, default=0.06, min=0.005, doc="metres: closer points form one blob"),
     "depth_encoding": Field(str, default="auto", choices=("auto", *DEPTH_ENCODINGS)),
     "intrinsics": Field(
         dict, default=None, doc="{width,height,fx,fy,cx,cy} (OpenCV pixel centres) for trajectories without them"
