@@ -117,6 +117,11 @@ def make_nodes(geom: SceneGeom) -> list[Node]:
             attrs["below_floor"] = geom.floor_why[i]
         if geom.metric_why[i] is not None:
             attrs["metric_check"] = geom.metric_why[i]
+        if geom.cut_why[i] is not None:  # no size comparison or size value (qa/recognisable.py)
+            attrs["sized"] = False
+            attrs["size_check"] = geom.cut_why[i]
+        if geom.front_why[i] is not None:  # its front is withheld: "front" is None
+            attrs["front_check"] = geom.front_why[i]
         s = supports[i]
         pt = None if geom.points[i] is None else (float(geom.points[i][0]), float(geom.points[i][1]))
         nodes.append(Node(int(o.id), o.category, attrs, phrases[i], pt, None if s is None else s.label))

@@ -6,8 +6,12 @@ free_radius_min)); the area between two anchors on the same surface (hull of the
 corners and edges of the surface, named from the viewer. Obstacle footprints (every object standing on
 or over the surface, grown by a clearance) are subtracted, the region is cut to the part of the surface
 the camera's image covers, points are kept only when the depth map sees the surface there (2.5 cm), and
-a region needs a minimum visible area. The answer point is the visible sample farthest inside the region,
-re-checked after rounding to RefSpatial's three decimals with `check_free_point`.
+a region needs a minimum visible area. The answer point is the visible sample farthest inside the region
+that keeps a clearance (`clear_samples`): `graph: truth: min_point_clearance_px` (20 px at 640x480) from every
+object's mask (but the surface's own object) and from the image border, and the thresholds' `free_clearance`
+from every obstacle footprint; it is re-checked after rounding to RefSpatial's three decimals with
+`check_free_point` and the clearance again. A region with no such point is dropped (graph.meta["truth"]:
+`free_point_no_clearance`). Audit round 2: a point "behind the mug" touched the mug in the image.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from shapely.ops import unary_union
 
 from refspatial_gen.core.mask import denormalise_point, normalise_point
 from refspatial_gen.core.model import Frame, FreeSpaceRegion, SceneGraph
+from refspatial_gen.graph.clearance import clear_samples
 from refspatial_gen.graph.scene import SceneGeom, box_footprint, points_in_polygons
 from refspatial_gen.graph.support import get_supports, surface_polygon
 
@@ -31,6 +36,7 @@ MAX_BETWEEN_GAP = {"tabletop": 0.6, "room": 3.0}
 MIN_BETWEEN_GAP_FACTOR = 2.0
 BETWEEN_NEIGHBOURS = 3  # "between" regions for each anchor and its nearest neighbours only
 SIMPLIFY = 0.003  # m, stored outlines are simplified by this much (the checker uses the stored outline)
+NO_CLEARANCE = "free_point_no_clearance"  # graph.meta["truth"]: a region dropped for want of a clear point
 
 
 # ----------------------------------------------------------------------------- shared geometry
@@ -243,16 +249,21 @@ def _region(
     if area < geom.th.free_min_area:
         return None
     depth_in = shapely.distance(shapely.points(vis), poly.exterior)
-    order = np.argsort(-np.round(depth_in, 6), kind="stable")
+    exclude = next((su.object_id for su in geom.surfaces if su.id == sid), None)
+    uv_all, _ = geom.project_world(np.column_stack([vis, np.full(len(vis), z)]))
+    clear = clear_samples(geom, np.floor(uv_all).astype(int), vis, exclude, obstacles)
+    if not clear.any():
+        counts = geom.cache.setdefault("truth", {})
+        counts[NO_CLEARANCE] = counts.get(NO_CLEARANCE, 0) + 1
+        return None
+    order = [k for k in np.argsort(-np.round(depth_in, 6), kind="stable") if clear[k]]
     G = geom.gravity.rotation
     poly_xy = [(round(float(x), 5), round(float(y), 5)) for x, y in np.asarray(poly.exterior.coords)[:-1]]
     for k in order[:POINT_TRIES]:
-        pw = np.array([vis[k, 0], vis[k, 1], z])
-        uv, _ = geom.project_world(pw[None])
-        p = normalise_point(float(np.floor(uv[0, 0])), float(np.floor(uv[0, 1])), geom.W, geom.H)
+        p = normalise_point(float(np.floor(uv_all[k, 0])), float(np.floor(uv_all[k, 1])), geom.W, geom.H)
         px, py = denormalise_point(p[0], p[1], geom.W, geom.H)
         hit = pixel_to_plane(geom.frame, G, px, py, z)
-        if hit is None:
+        if hit is None or not clear_samples(geom, np.array([[px, py]]), hit[None, :2], exclude, obstacles)[0]:
             continue
         r = FreeSpaceRegion(
             sid, kind, tuple(anchors), poly_xy, z, round(area, 6), (float(hit[0]), float(hit[1]), float(z)), p, label

@@ -140,6 +140,8 @@ class SceneGeom:
         self.in_view = np.ones(n)
         self.floor_why: list[str | None] = [None] * n
         self.metric_why: list[str | None] = [None] * n
+        self.cut_why: list[str | None] = [None] * n  # cut by the image border: no size question
+        self.front_why: list[str | None] = [None] * n  # why its front was taken away (orientation)
         self.fronts = np.full((n, 3), np.nan)
         for i, o in enumerate(objs):
             if o.front is not None:

@@ -22,6 +22,7 @@ from refspatial_gen.qa.index import Reject, SceneIndex
 from refspatial_gen.qa.nesting import nested_phrase
 from refspatial_gen.qa.ops.base import BOOL, OBJECT
 from refspatial_gen.qa.program import Template
+from refspatial_gen.qa.recognisable import withhold_cut
 from refspatial_gen.qa.record import build_pair
 from refspatial_gen.qa.sample_rng import SampleRng
 from refspatial_gen.qa.values import Context, PointValue
@@ -304,7 +305,7 @@ def _instantiate(
             qa = build_pair(t, {**env, **extra}, ans, ctx, rng, frame_ids, qa_id, view)
         except Reject:
             return None
-        why = withhold(t, env, ctx, qa)
+        why = withhold_cut(t, env, ctx, qa) or withhold(t, env, ctx, qa)  # recognisable.py, faint.py
         if why is not None:
             if truth is not None:
                 truth[why] = truth.get(why, 0) + 1

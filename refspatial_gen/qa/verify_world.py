@@ -51,6 +51,11 @@ class World:
             cfg["thresholds"] = graph.meta["thresholds"]
         self.geom = geometry(frame, cfg)
         self.nodes = {n.object_id: n for n in graph.nodes}
+        for i, o in enumerate(frame.objects):  # fronts the graph withheld (cut, half seen: graph/visibility.py)
+            n = self.nodes.get(o.id)  # stay unknown here too; qa/verify_truth.py checks each withholding's cause
+            if n is not None and n.attributes.get("front_check"):
+                self.geom.fronts[i] = np.nan
+                self.geom.has_front[i] = False
         self.objects = {o.id: o for o in frame.objects}
         self.used: list[str] = []
         self._masks: dict[int, np.ndarray] = {}
