@@ -302,7 +302,7 @@ class SceneIndex:
             n = nodes[x]
             tied = tied or linked(n.support, x, nodes[anchor].support, anchor)
             cx = n.attributes.get("center")
-            if out is not None and cx is not None:
+            if out is not None and cx is not None and ca is not None:
                 out.append(math.dist(cx, ca))
             else:
                 out = None

@@ -44,7 +44,9 @@ def _approximate(frame: Frame) -> bool:
     meta = frame.meta
     dep = meta.get("depth")
     origin = dep.get("origin", "") if isinstance(dep, dict) else ""
-    return meta.get("depth_source") == "splatted_points" or (frame.source == "image" and not str(origin).startswith("provided"))
+    if meta.get("depth_source") == "splatted_points":
+        return True
+    return frame.source == "image" and not str(origin).startswith("provided")
 
 
 def _inconsistent(frame: Frame, p: Any) -> str | None:

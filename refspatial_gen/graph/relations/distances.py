@@ -227,7 +227,7 @@ def _close_cell(t: RelationTables, args: tuple[Any, ...]) -> Cell | None:
     ids = (args[0], args[1], args[2])
     ctr = [t.nodes[x].attributes.get("center") for x in ids]
     cac = cbc = None
-    if all(p is not None for p in ctr):
+    if ctr[0] is not None and ctr[1] is not None and ctr[2] is not None:
         cac, cbc = math.dist(ctr[0], ctr[2]), math.dist(ctr[1], ctr[2])
     holds, v, m = close_value(dac, dbc, t.th, cac, cbc)
     sa, sb, sc = (t.nodes[x].support for x in ids)
