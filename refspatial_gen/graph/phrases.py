@@ -20,6 +20,7 @@ import numpy as np
 from refspatial_gen.graph.colour import delta_e
 from refspatial_gen.graph.relations import directions, sizes
 from refspatial_gen.graph.relations.common import FALSE, TRUE
+from refspatial_gen.graph.relations.containment import _inside
 from refspatial_gen.graph.scene import SceneGeom
 from refspatial_gen.graph.support import get_supports
 
@@ -209,6 +210,7 @@ def _anchor_phrases(
     m = geom.th.anchor_distance_margin
     rel = geom.th.distance_margin_rel  # the winner must also beat the runner-up by this share (a visible gap)
     supports, _ = get_supports(geom)
+    inside = _inside(geom)[1]
     surf_names = {s.id: (s.name or f"the {s.kind}") for s in geom.surfaces}
     for cat, members in sorted(by_cat.items()):
         if len(members) < 2:
@@ -216,7 +218,9 @@ def _anchor_phrases(
         for a in sorted(simple):
             if cats[a] == cat:
                 continue
-            if any(_stands_on(supports, geom, x, a) or _stands_on(supports, geom, a, x) for x in members):
+            if any(_stands_on(supports, geom, x, a) or _stands_on(supports, geom, a, x) for x in members) or any(
+                inside[x, a] != FALSE or inside[a, x] != FALSE for x in members
+            ):
                 continue  # a member on the anchor (or carrying it) is 0 m from it: no distance a person sees
             da, ca = d[members, a], c[members, a]
             for k, i in enumerate(members):

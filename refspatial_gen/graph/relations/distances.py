@@ -118,6 +118,16 @@ def centre_agrees(c_best: float, c_other: float, farthest: bool, th: Thresholds)
     return bool(gap > close_margin(c_best, c_other, th))
 
 
+def nested(t: RelationTables, *ids: Any) -> bool:
+    """The first object and any other lie one inside the other (stored inside true or undecided)."""
+    for x in ids[1:]:
+        for pair in ((ids[0], x), (x, ids[0])):
+            c = t.cell("inside", pair)
+            if c is not None and c.holds is not False:
+                return True
+    return False
+
+
 def linked(support_a: str | None, a: Any, support_b: str | None, b: Any) -> bool:
     """A stands on B or B on A (a stored node's `support`, "obj:<id>"): their distance is 0 by construction
     and says nothing a person would call "close" (the mouse in the tray)."""
@@ -156,11 +166,17 @@ def _count_close(geom: SceneGeom) -> list[RelationFact]:
 
 
 def _supported_pairs(geom: SceneGeom) -> set[tuple[int, int]]:
-    """Positions (i, k) where i stands on object k or k on i (graph.support's rule, recomputed)."""
+    """Positions (i, k) where i stands on object k or k on i (graph.support's rule, recomputed), or one lies
+    inside the other (inside true or undecided: the mouse in the tray)."""
+    from refspatial_gen.graph.relations.containment import _inside
     from refspatial_gen.graph.support import get_supports
 
     sup, _ = get_supports(geom)
+    codes = _inside(geom)[1]
     out: set[tuple[int, int]] = set()
+    for i, k in zip(*np.nonzero((codes == TRUE) | (codes == UNDECIDED))):
+        if i != k:
+            out.update({(int(i), int(k)), (int(k), int(i))})
     for i, s in enumerate(sup):
         if s is not None and s.kind == "object":
             k = geom.index[int(s.ref)]
@@ -231,7 +247,7 @@ def _close_cell(t: RelationTables, args: tuple[Any, ...]) -> Cell | None:
         cac, cbc = math.dist(ctr[0], ctr[2]), math.dist(ctr[1], ctr[2])
     holds, v, m = close_value(dac, dbc, t.th, cac, cbc)
     sa, sb, sc = (t.nodes[x].support for x in ids)
-    if linked(sa, ids[0], sc, ids[2]) or linked(sb, ids[1], sc, ids[2]):
+    if linked(sa, ids[0], sc, ids[2]) or linked(sb, ids[1], sc, ids[2]) or nested(t, ids[2], ids[0], ids[1]):
         holds = None
     return Cell(holds, v, m)
 
