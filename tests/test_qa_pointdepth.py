@@ -212,6 +212,7 @@ def _patched(seed: int, splatted: bool):  # type: ignore[no-untyped-def]
     behind the rest every 24 px where the depth is valid (a chair seat reading the desk behind it: flat inside,
     mixed around), depth marked splatted from points or not; also the islands' centres."""
     f = toy_frame(np.random.default_rng(seed), 0, frame_id=f"island:{seed}")
+    f.depth = np.full_like(f.depth, 2.0)  # a flat wall: only the islands make the depth inconsistent
     base, centres = f.depth.copy(), []
     for v in range(24, f.depth.shape[0] - 24, 24):
         for u in range(24, f.depth.shape[1] - 24, 24):
