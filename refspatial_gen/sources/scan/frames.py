@@ -34,6 +34,7 @@ DEFAULTS: dict[str, Any] = {
     "withhold_unexplained_floor": True,
     "unexplained_min_points": 20,
     "unlabelled_stand_ins": True,
+    "max_point_recess": 0.30,
 }
 
 SUPPORT_KINDS = {
