@@ -27,7 +27,9 @@ def test_left_undecided_when_one_mask_spans_the_other():
     """photos image:483108 #5: a train spanning the whole width behind a cyclist was "left of the bicycle".
     The can's centroid lies inside the wide box's columns: neither is left of the other. Beside it, clear of
     its columns' centre, it still is."""
-    fr, g = scene(("can", "red", box(-0.12, -0.2, (0.05, 0.05, 0.10))), ("box", "blue", box(0.15, 0.3, (0.9, 0.1, 0.2))))
+    fr, g = scene(
+        ("can", "red", box(-0.12, -0.2, (0.05, 0.05, 0.10))), ("box", "blue", box(0.15, 0.3, (0.9, 0.1, 0.2)))
+    )
     assert g.img_cols[1, 0] < g.img_centroid[0, 0] < g.img_cols[1, 1]
     check(fr, g, "left", (1, 2), None)
     check(fr, g, "right", (2, 1), None)
@@ -40,7 +42,9 @@ def test_left_undecided_when_one_mask_spans_the_other():
 def test_two_objects_on_one_surface_are_neither_above_nor_below():
     """sim:000011/v1 #12: a flat pen (1 cm high, = the stack tolerance) and a can on one tabletop: the can's
     bottom was "at the pen's top", so the pen was "below" the can. A cup on a 2 cm plate still is above it."""
-    fr, g = scene(("pen", "red", box(-0.15, 0.0, (0.15, 0.009, 0.01))), ("can", "black", box(0.15, 0.0, (0.066, 0.066, 0.12))))
+    fr, g = scene(
+        ("pen", "red", box(-0.15, 0.0, (0.15, 0.009, 0.01))), ("can", "black", box(0.15, 0.0, (0.066, 0.066, 0.12)))
+    )
     check(fr, g, "below_world", (1, 2), None)
     check(fr, g, "above_world", (2, 1), None)
     assert verifier(fr, "below_world", 1, 2) is None
@@ -95,7 +99,9 @@ def test_between_needs_same_category_rivals_off_in_both_planes():
 def test_no_near_or_far_edge_on_a_shallow_shelf():
     """sim:000004/v0 #7: "near the far edge of the wall shelf" on a shelf 20 cm deep (edge band 8 cm): every
     object on it is near both edges. The left/right edges of the 1.2 m long shelf keep their names."""
-    fr, _ = scene(("box", "red", box(0.0, 0.0, (0.06, 0.06, 0.10))), ("box", "blue", box(0.55, 0.0, (0.06, 0.06, 0.10))))
+    fr, _ = scene(
+        ("box", "red", box(0.0, 0.0, (0.06, 0.06, 0.10))), ("box", "blue", box(0.55, 0.0, (0.06, 0.06, 0.10)))
+    )
     shelf = Box3D(np.array([0.0, 0.0, TOP / 2]), np.array([1.2, 0.2, TOP]), np.eye(3))
     fr.surfaces = [SupportSurface("table", "table", shelf, None, "the shelf")]
     g = geometry(fr)
