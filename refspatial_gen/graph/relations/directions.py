@@ -58,17 +58,6 @@ def image_gap(geom: SceneGeom, axis: int, floor: float) -> np.ndarray:
         return np.fmax(need, geom.th.image_extent_share * smaller)
 
 
-def span_contains(geom: SceneGeom, axis: int) -> np.ndarray:
-    """[i, j]: along image `axis` (0 columns, 1 rows) one mask's centroid lies inside the other's span: a train
-    spanning the whole width behind a cyclist is neither left nor right of the bicycle (audit round 3).
-    Masks without a span (NaN) never contain."""
-    span = geom.img_cols if axis == 0 else geom.img_rows
-    lo, hi, c = span[:, 0], span[:, 1], geom.img_centroid[:, axis]
-    with np.errstate(invalid="ignore"):
-        inside = (c[None, :] > lo[:, None]) & (c[None, :] < hi[:, None])  # [i, j]: j's centroid in i's span
-    return inside | inside.T
-
-
 def _lateral(geom: SceneGeom) -> Matrices:
     """Camera-frame centres decide with the metric margin; the image must agree and show the order clearly:
     centroids apart by image_extent_share of the narrower mask and, where the masks' columns overlap, by
@@ -84,9 +73,6 @@ def _lateral(geom: SceneGeom) -> Matrices:
     unclear = (codes != UNDECIDED) & (np.abs(du) < image_gap(geom, 0, geom.th.image_clear_margin))
     count(geom, "margin_image_lateral", unclear)
     codes[unclear] = UNDECIDED
-    contained = (codes != UNDECIDED) & span_contains(geom, 0)
-    count(geom, "image_span_contains", contained)
-    codes[contained] = UNDECIDED
     return v, codes, geom.th.lateral_margin
 
 
@@ -122,9 +108,6 @@ def _image_vertical(geom: SceneGeom) -> Matrices:
     unclear = (codes != UNDECIDED) & (np.abs(v) < image_gap(geom, 1, geom.th.image_clear_margin))
     count(geom, "margin_image_vertical", unclear)
     codes[unclear] = UNDECIDED
-    contained = (codes != UNDECIDED) & span_contains(geom, 1)
-    count(geom, "image_span_contains", contained)
-    codes[contained] = UNDECIDED
     return v, codes, geom.th.image_margin
 
 
@@ -187,7 +170,7 @@ _pair(
     "lateral_margin, image_margin, image_clear_margin, image_extent_share",
     "A's centre is left of B's in the camera frame by more than the margin, the image agrees with the mask "
     "centroids clearly apart (image_extent_share of the narrower mask, and image_clear_margin of the width "
-    "where the masks' columns overlap), neither centroid inside the other mask's columns "
+    "where the masks' columns overlap) "
     "and their boxes do not overlap (footprints, half the shorter x extent)",
 )
 _mirror(
@@ -221,7 +204,7 @@ _pair(
     "image_margin, image_clear_margin, image_extent_share",
     "A's 2D centre is higher in the image than B's by image_extent_share of the shorter mask (and "
     "image_clear_margin of the height where the masks' rows overlap), "
-    "neither centroid inside the other mask's rows, the masks' top and bottom rows agreeing",
+    "the masks' top and bottom rows agreeing",
 )
 _mirror(
     "below_image",
