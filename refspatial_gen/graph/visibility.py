@@ -20,6 +20,9 @@ Recipe (`graph: truth:`, every key optional; docs/quality.md has the measurement
 pixel lengths are for a 640x480 image and scale with sqrt(width * height / (640 * 480))):
   min_visible_px             visible mask pixels an object needs (default 150)
   min_visible_fraction       visible / unoccluded projected pixels, where the source knows it (default 0.5)
+  min_photo_area_fraction    on photos (an estimated metric scale, no occlusion estimate): visible mask pixels
+                             over the image's pixels an object needs (default 0.004: a toilet glimpsed as a
+                             sliver behind a door frame, a chair seen through a far doorway; audit round 3)
   min_in_view_fraction       share of the object's 3D box inside the camera's view (default 0.5)
   min_thickness_px           a mask whose largest inscribed disc has a smaller radius (default 6 px) ...
   min_thickness_ratio        ... and under this share of the half-size its middle box extent projects to
@@ -46,6 +49,7 @@ DEFAULTS: dict[str, float] = {
     "min_visible_px": 150,
     "min_visible_fraction": 0.5,
     "min_in_view_fraction": 0.5,
+    "min_photo_area_fraction": 0.004,
     "min_thickness_px": 6.0,
     "min_thickness_ratio": 0.25,
     "min_whole_in_view": 0.9,
@@ -56,6 +60,7 @@ DEFAULTS: dict[str, float] = {
 _DOCS = {
     "min_visible_px": (int, 1_000_000, "visible mask pixels every referent, option and mark needs"),
     "min_visible_fraction": (float, 1.0, "visible / unoccluded projected pixels (where the source measures it)"),
+    "min_photo_area_fraction": (float, 1.0, "photos: visible mask pixels / image pixels every referent needs"),
     "min_in_view_fraction": (float, 1.0, "share of the object's 3D box inside the camera's view (image border cut)"),
     "min_thickness_px": (
         float,
@@ -81,6 +86,7 @@ TRUTH_FIELDS: dict[str, Field] = {
 }
 # reasons (graph.meta["truth"] keys, node attribute "below_floor")
 FEW_PIXELS, LOW_FRACTION, OUT_OF_VIEW = "below_floor_pixels", "below_floor_fraction", "below_floor_border"
+PHOTO_SMALL = "below_floor_photo_area"  # photos: too small a share of the image to make out
 THIN = "below_floor_thin"  # the visible mask is a sliver of an object that is not thin itself
 SCALE_UNVERIFIED = "metric_scale_unverified"
 CUT_BY_BORDER = "cut_by_border"  # the mask reaches the image border (or the box is not whole in view)
@@ -102,6 +108,7 @@ class Floor:
     min_whole_in_view: float = DEFAULTS["min_whole_in_view"]
     min_front_visible_fraction: float = DEFAULTS["min_front_visible_fraction"]
     min_point_clearance_px: float = DEFAULTS["min_point_clearance_px"]
+    min_photo_area_fraction: float = DEFAULTS["min_photo_area_fraction"]
 
     def to_json(self) -> dict[str, float]:
         """Stored as graph.meta["truth_floor"]: verify (qa/verify_truth.py) re-checks against it."""
@@ -194,15 +201,24 @@ def is_sliver(radius: float, half: float, floor: Floor, scale: float) -> bool:
     return radius < floor.min_thickness_px * scale and radius < floor.min_thickness_ratio * half
 
 
+def is_photo(frame: Any) -> bool:
+    """A photo: its metric scale is estimated (a dict in frame.meta), and no source measures occlusion, so
+    every object reports visible_fraction 1.0 and only its share of the image says whether it can be made out."""
+    return isinstance(frame.meta.get("metric_scale"), dict)
+
+
 def floor_reasons(geom: Any, floor: Floor, masks: list[np.ndarray | None]) -> list[str | None]:
     """Per object position: why it is below the visibility floor, or None."""
     out: list[str | None] = []
     cam = geom.frame.camera
     scale = px_scale(cam.width, cam.height)
+    photo_px = floor.min_photo_area_fraction * cam.width * cam.height if is_photo(geom.frame) else 0.0
     for i, o in enumerate(geom.frame.objects):
         m = masks[i]
         if int(geom.mask_area[i]) < floor.min_visible_px or m is None:
             out.append(FEW_PIXELS)
+        elif int(geom.mask_area[i]) < photo_px:
+            out.append(PHOTO_SMALL)
         elif float(o.visible_fraction) < floor.min_visible_fraction:
             out.append(LOW_FRACTION)
         elif geom.in_view[i] < floor.min_in_view_fraction:
