@@ -30,6 +30,10 @@ pixel lengths are for a 640x480 image and scale with sqrt(width * height / (640 
   min_whole_in_view          an object with less of its box in view, or a mask reaching the border, is cut:
                              no size question, no front (default 0.9)
   min_front_visible_fraction a front (facing, angle) needs this visible fraction (default 0.7)
+  min_front_height_ratio     a front also needs the object's height at least this share of its smaller horizontal
+                             extent (default 0.4): a book or notebook lying flat has no facing a person can
+                             judge (its spine points along the table; audit round 3). Measured: books <= 0.28,
+                             notebooks 0.07, scissors 0.11; every other object with a front >= 0.52
   min_point_clearance_px     free-space answer points keep this far from every object's mask and from the
                              image border (default 20 px; graph/freespace.py)
   size_tolerance             widen every category size range by this fraction (default 0.0)
@@ -54,6 +58,7 @@ DEFAULTS: dict[str, float] = {
     "min_thickness_ratio": 0.25,
     "min_whole_in_view": 0.9,
     "min_front_visible_fraction": 0.7,
+    "min_front_height_ratio": 0.4,
     "min_point_clearance_px": 20.0,
     "size_tolerance": 0.0,
 }
@@ -74,6 +79,7 @@ _DOCS = {
     ),
     "min_whole_in_view": (float, 1.0, "box share in view below which (or a mask at the border) an object is cut"),
     "min_front_visible_fraction": (float, 1.0, "visible fraction an object needs for its front (facing, angle)"),
+    "min_front_height_ratio": (float, 100.0, "height / smaller horizontal extent an object needs for its front"),
     "min_point_clearance_px": (
         float,
         1000.0,
@@ -91,7 +97,8 @@ THIN = "below_floor_thin"  # the visible mask is a sliver of an object that is n
 SCALE_UNVERIFIED = "metric_scale_unverified"
 CUT_BY_BORDER = "cut_by_border"  # the mask reaches the image border (or the box is not whole in view)
 OCCLUDED = "occluded_in_front"  # photos: another object in front hides part of it (its foot)
-FRONT_CUT, FRONT_HIDDEN = "front_withheld_cut_by_border", "front_withheld_hidden"  # node attribute front_check
+FRONT_CUT, FRONT_HIDDEN = "front_withheld_cut_by_border", "front_withheld_hidden"
+FRONT_LYING = "front_withheld_lying"  # lying flat (a plate: a book, a notebook): no facing a person can judge  # node attribute front_check
 SIZE_CUT = "no_size_cut_by_border"  # graph.meta["truth"]: objects asked no size question (node: sized False)
 BORDER_PX = 3  # mask pixels in the outer BORDER_PX rows/columns (within 2 px of the edge) touch the border
 GRID = 12  # points per box axis for the in-view share (share error <= 1/24 for a border cut)
@@ -109,6 +116,7 @@ class Floor:
     min_front_visible_fraction: float = DEFAULTS["min_front_visible_fraction"]
     min_point_clearance_px: float = DEFAULTS["min_point_clearance_px"]
     min_photo_area_fraction: float = DEFAULTS["min_photo_area_fraction"]
+    min_front_height_ratio: float = DEFAULTS["min_front_height_ratio"]
 
     def to_json(self) -> dict[str, float]:
         """Stored as graph.meta["truth_floor"]: verify (qa/verify_truth.py) re-checks against it."""
@@ -242,9 +250,12 @@ def cut_reasons(geom: Any, floor: Floor, masks: list[np.ndarray | None]) -> list
 
 
 def front_reasons(geom: Any, floor: Floor, cut: list[str | None]) -> list[str | None]:
-    """Per object position with a front: why its front is withheld (cut by the border, or less than
-    `min_front_visible_fraction` seen: a toy car's front cannot be told from its back), or None."""
+    """Per object position with a front: why its front is withheld (cut by the border, less than
+    `min_front_visible_fraction` seen: a toy car's front cannot be told from its back; or lying flat, its
+    height under `min_front_height_ratio` of its smaller horizontal extent: a book's spine), or None."""
     out: list[str | None] = []
+    fp = np.asarray(geom.footprints, float).reshape(-1, 4, 2)
+    smaller = np.minimum(np.linalg.norm(fp[:, 1] - fp[:, 0], axis=1), np.linalg.norm(fp[:, 2] - fp[:, 1], axis=1))
     for i, o in enumerate(geom.frame.objects):
         if not geom.has_front[i]:
             out.append(None)
@@ -252,6 +263,8 @@ def front_reasons(geom: Any, floor: Floor, cut: list[str | None]) -> list[str | 
             out.append(FRONT_CUT)
         elif float(o.visible_fraction) < floor.min_front_visible_fraction:
             out.append(FRONT_HIDDEN)
+        elif float(geom.height[i]) < floor.min_front_height_ratio * float(smaller[i]):
+            out.append(FRONT_LYING)
         else:
             out.append(None)
     return out

@@ -233,9 +233,20 @@ def _fronts(qa: QAPair, frame: Frame, graph: SceneGraph, named: set[int], floor:
         why = _cut(frame, o, floor)
         if why is None and float(o.visible_fraction) < need:
             why = f"visible fraction {o.visible_fraction:.3f} < {need}"
+        if why is None and (flat := _flatness(o.box)) < float(floor.get("min_front_height_ratio", 0.0)):
+            why = f"lying flat: height / smaller horizontal extent {flat:.2f} < {floor['min_front_height_ratio']}"
         if why is not None:
             out.append(f"orientation question reads the front of object {i} ({o.category}): {why}")
     return out
+
+
+def _flatness(box: Any) -> float:
+    """Height over the smaller side of the minimum-area rectangle around the box's corners seen from above."""
+    import cv2
+
+    c = np.asarray(box.corners(), float)
+    (_, (a, b), _) = cv2.minAreaRect(c[:, :2].astype(np.float32))
+    return float(np.ptp(c[:, 2]) / max(min(a, b), 1e-9))
 
 
 def _phrase_changes(qa: QAPair, frame: Frame, low: set[int]) -> list[str]:
