@@ -4,13 +4,10 @@ facing the mustard bottle"): its front is withheld (front_withheld_lying); stand
 
 from __future__ import annotations
 
-import numpy as np
-
 from refspatial_gen.graph import build_graph
 from refspatial_gen.graph.visibility import FRONT_LYING, Floor
 from refspatial_gen.qa.verify_truth import check_truth
 from tests.test_recog_floor import _box, _many, _scene, _with, cfg  # noqa: F401  (cfg: a fixture)
-
 
 
 def test_book_lying_flat_has_no_front_but_standing_keeps_it():

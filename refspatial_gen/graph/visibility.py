@@ -98,7 +98,7 @@ SCALE_UNVERIFIED = "metric_scale_unverified"
 CUT_BY_BORDER = "cut_by_border"  # the mask reaches the image border (or the box is not whole in view)
 OCCLUDED = "occluded_in_front"  # photos: another object in front hides part of it (its foot)
 FRONT_CUT, FRONT_HIDDEN = "front_withheld_cut_by_border", "front_withheld_hidden"
-FRONT_LYING = "front_withheld_lying"  # lying flat (a plate: a book, a notebook): no facing a person can judge  # node attribute front_check
+FRONT_LYING = "front_withheld_lying"  # lying flat (a book, a notebook): no facing a person can judge
 SIZE_CUT = "no_size_cut_by_border"  # graph.meta["truth"]: objects asked no size question (node: sized False)
 BORDER_PX = 3  # mask pixels in the outer BORDER_PX rows/columns (within 2 px of the edge) touch the border
 GRID = 12  # points per box axis for the in-view share (share error <= 1/24 for a border cut)
