@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from refspatial_gen.core.mask import RLE
-from refspatial_gen.qa.faint_photo import INCOMPLETE, POSITION, SAME_SIZE, photo_withhold
+from refspatial_gen.qa.faint_photo import HORIZONTAL, INCOMPLETE, POSITION, SAME_SIZE, photo_withhold
 from refspatial_gen.qa.verify_photo import check_photo
 from refspatial_gen.sources.image.composite import separator_band
 from refspatial_gen.sources.image.contact import position_unseen
@@ -115,11 +115,11 @@ def test_verify_catches_a_position_flag_that_disagrees_with_the_mask() -> None:
 
 def test_no_size_comparison_within_one_category_on_photos() -> None:
     frame = _frame([_obj(1, "bicycle", (10, 20, 60, 80)), _obj(2, "bicycle", (120, 20, 190, 70))])
-    wide = _compare("wide", _ref(1, "the leftmost bicycle"), _ref(2, "the rightmost bicycle"))
+    wide = _compare("tall", _ref(1, "the leftmost bicycle"), _ref(2, "the rightmost bicycle"))
     assert photo_withhold(wide, frame) == SAME_SIZE and check_photo(wide, frame)
     mixed = _frame([_obj(1, "bicycle", (10, 20, 60, 80)), _obj(2, "car", (120, 20, 190, 70))])
-    wide2 = _compare("wide", _ref(1, "the bicycle"), _ref(2, "the car"))
-    assert photo_withhold(wide2, mixed) is None and check_photo(wide2, mixed) == []
+    tall2 = _compare("tall", _ref(1, "the bicycle"), _ref(2, "the car"))
+    assert photo_withhold(tall2, mixed) is None and check_photo(tall2, mixed) == []
     loc = SimpleNamespace(
         program=[{"args": {"of": _ref(1, "the smallest bicycle")}, "as": "s", "op": "locate", "out": {"object": 1}}]
     )
@@ -160,3 +160,18 @@ def test_incomplete_categories_from_the_annotations(anns: list, crowd: set, want
     a = [SimpleNamespace(category=c, iscrowd=bool(k), isthing=True) for c, k in anns]
     cfg = {"incomplete_min_instances": 6, "incomplete_categories": ["person"]}
     assert incomplete_categories(a, crowd, cfg) == want
+
+
+def test_no_width_question_on_an_estimated_photo() -> None:
+    """Audit round 4 (COCO 515289): 'the longest horizontal side of the nearest bicycle' answered 39 cm for a
+    bike seen head-on: a one-view lift knows the apparent width, not the extent along the view. Fails on the
+    old code, which asked width measurements and wider/thinner comparisons on photos."""
+    mixed = _frame([_obj(1, "bicycle", (10, 20, 60, 80)), _obj(2, "car", (120, 20, 190, 70))])
+    wide = _compare("wide", _ref(1, "the bicycle"), _ref(2, "the car"))
+    assert photo_withhold(wide, mixed) == HORIZONTAL and check_photo(wide, mixed)
+    width = SimpleNamespace(
+        program=[{"args": {"of": _ref(1, "the bicycle"), "quantity": "width"}, "as": "s", "op": "measure", "out": 0.39}]
+    )
+    assert photo_withhold(width, mixed) == HORIZONTAL and check_photo(width, mixed)
+    measured = _frame(mixed.objects, metric_scale={"source": "measured", "reliable": True})
+    assert photo_withhold(wide, measured) is None and check_photo(wide, measured) == []

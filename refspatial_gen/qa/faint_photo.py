@@ -21,6 +21,11 @@ same rules by its own code (qa/verify_photo.py).
                             instances, or listed): no phrase naming one of it ("the person" claims it is
                             the only one, "the leftmost person" its rank: 5802) and no set of the category
                             (filter: counts, superlatives, ordinals)
+  size_horizontal_unseen    on an estimated-depth photo the lift knows an object's height and its apparent
+                            width, not its extent along the view (every lifted footprint is square): no
+                            width / length measurement and no wider / thinner comparison ("the longest
+                            horizontal side of the nearest bicycle: 39 cm" for a bike seen head-on,
+                            audit round 4, COCO 515289)
 """
 
 from __future__ import annotations
@@ -50,7 +55,9 @@ POSITION_RELATIONS = frozenset(
 SIZE_RELATIONS = frozenset({"tall", "short", "big", "small", "wide", "thin"})
 POSITION_WORDS = ("nearest", "farthest", "closest to", "farthest from")
 SIZE_WORDS = ("tallest", "shortest", "biggest", "smallest")
+HORIZONTAL_RELATIONS = frozenset({"wide", "thin", "width"})  # relations and measured quantities of a footprint
 POSITION, SAME_SIZE, INCOMPLETE = "position_contact_unseen", "size_same_category", "incomplete_category_claim"
+HORIZONTAL = "size_horizontal_unseen"
 
 
 def contact_unseen(frame: Frame) -> dict[int, str]:
@@ -127,6 +134,8 @@ def photo_withhold(qa: QAPair, frame: Frame) -> str | None:
     for op, rel, objs in _steps(qa, all_ids):
         if unseen and (rel in POSITION_RELATIONS or rel in SIZE_RELATIONS) and not objs.isdisjoint(unseen):
             return POSITION
+        if sizes and rel in HORIZONTAL_RELATIONS:
+            return HORIZONTAL
         if sizes and rel in SIZE_RELATIONS:
             named = [cats[i] for i in objs if i in cats]
             if len(named) != len(set(named)):

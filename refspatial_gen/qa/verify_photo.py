@@ -6,7 +6,9 @@ meet the floor); the recorded flag must agree. Then every step of the pair's pro
 reads (its arguments, the outputs of the steps it refers to) and gives, and every referring phrase:
   - no position or size relation on an object without a trusted position;
   - on an estimated-depth photo, no size relation or size superlative between two objects of one category;
-  - no phrase naming an object of a category the reader marked incomplete, no set of such a category.
+  - no phrase naming an object of a category the reader marked incomplete, no set of such a category;
+  - on an estimated-depth photo, no width measurement or wider/thinner comparison (the lifted footprint is
+    only the apparent width, squared).
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from refspatial_gen.truth.contact import OFF_GROUND
 _POSITION = {"front", "behind", "above_world", "below_world", "close", "far", "depth", "distance", "touching"}
 _POSITION |= {"far_from", "next_to", "between", "inside", "outside"}
 _SIZE = {"tall", "short", "big", "small", "wide", "thin"}
+_FOOTPRINT = {"wide", "thin", "width"}
 _EDGE = 2  # mask pixels in the outer 3 rows/columns reach the border (graph/visibility.BORDER_PX)
 
 
@@ -91,6 +94,8 @@ def check_photo(qa: QAPair, frame: Frame) -> list[str]:
         if (rel in _POSITION or rel in _SIZE) and hit:
             out.append(f"step {st.get('as')} ({rel}) involves object {hit[0]}: {bad[hit[0]]}")
         named = [cat[i] for i in sorted(ids) if i in cat]
+        if estimated and rel in _FOOTPRINT:
+            out.append(f"step {st.get('as')} ({rel}) rests on a photo's unmeasured footprint")
         if estimated and rel in _SIZE and len(set(named)) < len(named):
             out.append(f"step {st.get('as')} compares sizes within one category on a photo")
         if st.get("op") == "filter" and partial & set(named):
