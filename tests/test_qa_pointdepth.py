@@ -205,3 +205,55 @@ def test_open3d_rgbd_sample(shared_data, tmp_path):
         == 0
     )
     assert main(["verify", str(out)]) == 0
+
+
+def _patched(seed: int, splatted: bool):  # type: ignore[no-untyped-def]
+    """An empty toy frame (320 px wide: windows 5x5 measured, 13x13 approximate) with 7x7 px islands 0.6 m
+    behind the rest every 24 px where the depth is valid (a chair seat reading the desk behind it: flat inside,
+    mixed around), depth marked splatted from points or not; also the islands' centres."""
+    f = toy_frame(np.random.default_rng(seed), 0, frame_id=f"island:{seed}")
+    f.depth = np.full_like(f.depth, 2.0)  # a flat wall: only the islands make the depth inconsistent
+    base, centres = f.depth.copy(), []
+    for v in range(24, f.depth.shape[0] - 24, 24):
+        for u in range(24, f.depth.shape[1] - 24, 24):
+            if base[v - 10 : v + 11, u - 10 : u + 11].min() > 0:
+                f.depth[v - 3 : v + 4, u - 3 : u + 4] += 0.6
+                centres.append((u, v))
+    if splatted:
+        f.meta["depth_source"] = "splatted_points"
+    return f, centres
+
+
+def test_depth_points_need_consistent_depth_around_them():
+    """Audit round 3 (ScanNet 00011:11): a point on a chair seat read the desk behind it in splatted depth, flat in
+    a 5x5 window. On approximate depth the 25x25 window must agree too; generation withholds (counted) and verify
+    reports such a point. Fails on the old code (no window rule; verify did not look around the point)."""
+    from refspatial_gen.qa.pointdepth import consistent_depth
+
+    f, centres = _patched(3, splatted=False)
+    u0, v0 = centres[len(centres) // 2]
+    assert consistent_depth(f, u0, v0)  # measured depth: the small window lies inside the island
+    f.meta["depth_source"] = "splatted_points"
+    assert not consistent_depth(f, u0, v0)  # approximate depth: the wider window sees the step
+    truth: dict[str, int] = {}
+    qas = point_depth_qa([f], np.random.default_rng(0), 40, truth=truth)
+    assert truth.get("point_depth_inconsistent", 0) > 0
+    assert verify_sample(Sample(f.frame_id, [f], [build_graph(f)], qas)) == []
+    for q in qas:
+        if q.answer_struct.get("quantity") == "depth" or q.answer_struct["kind"] == "choice":
+            for px, py in q.answer_struct["query_points"]:
+                assert consistent_depth(f, *denormalise_point(px, py, f.camera.width, f.camera.height))
+    # a depth question planted on an island's centre is reported by verify
+    plain, _ = _patched(3, splatted=False)
+    qa = next(q for q in point_depth_qa([plain], np.random.default_rng(1), 40) if q.template == "point_depth/depth")
+    W, H = f.camera.width, f.camera.height
+    p = [round((u0 + 0.5) / W, 3), round((v0 + 0.5) / H, 3)]
+    u, v = denormalise_point(p[0], p[1], W, H)
+    qa.question = qa.question.replace(POINT.findall(qa.question)[0][0], f"{p[0]:.3f}").replace(
+        POINT.findall(qa.question)[0][1], f"{p[1]:.3f}"
+    )
+    qa.answer_struct["query_points"] = [p]
+    qa.answer_struct["value"] = float(f.depth[v, u])
+    qa.answer = f"{float(f.depth[v, u]):.2f} meters"
+    reasons = _reasons(Sample(f.frame_id, [f], [build_graph(f)], [qa]))
+    assert any("spreads" in r for r in reasons), reasons

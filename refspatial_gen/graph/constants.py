@@ -71,6 +71,12 @@ class Thresholds:
     # between" is only said clearly off the segment (t < m - band, t > 1 - m + band, or off by corridor + band)
     between_t_band: float = 0.10
     between_corridor_band: float = 0.15
+    # the corridor narrows linearly within this share of |BC| of either anchor (a lens, not a rectangle): a can
+    # just past one anchor and off to its side is not "between" (audit round 3)
+    between_taper: float = 0.30
+    # near/far (left/right) edge of a surface only when the surface's extent along the edge normal is at least
+    # this many edge bands: on a shallow shelf every object is near both edges (audit round 3)
+    edge_depth_factor: float = 3.0
     # clear margins a person can see (audit round 2: relations decided on differences too small to see).
     # left/right and above/below in the image: the mask centroids must be apart by this fraction of the image
     # side (width for left/right, height for above/below) ...

@@ -13,11 +13,14 @@ objects that are hidden (they are still in the scene).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from refspatial_gen.graph.colour import delta_e
 from refspatial_gen.graph.relations import directions, sizes
 from refspatial_gen.graph.relations.common import FALSE, TRUE
+from refspatial_gen.graph.relations.containment import _inside
 from refspatial_gen.graph.scene import SceneGeom
 from refspatial_gen.graph.support import get_supports
 
@@ -189,6 +192,11 @@ def make_phrases(geom: SceneGeom) -> list[list[str]]:
     return result
 
 
+def _stands_on(supports: list[Any], geom: SceneGeom, i: int, j: int) -> bool:
+    s = supports[i]
+    return s is not None and s.kind == "object" and geom.index[int(s.ref)] == j
+
+
 def _anchor_phrases(
     geom: SceneGeom,
     by_cat: dict[str, list[int]],
@@ -198,10 +206,11 @@ def _anchor_phrases(
 ) -> None:
     if not geom.world_ok:
         return
-    d = geom.surface_distance
+    d, c = geom.surface_distance, geom.center_distance
     m = geom.th.anchor_distance_margin
     rel = geom.th.distance_margin_rel  # the winner must also beat the runner-up by this share (a visible gap)
     supports, _ = get_supports(geom)
+    inside = _inside(geom)[1]
     surf_names = {s.id: (s.name or f"the {s.kind}") for s in geom.surfaces}
     for cat, members in sorted(by_cat.items()):
         if len(members) < 2:
@@ -209,13 +218,19 @@ def _anchor_phrases(
         for a in sorted(simple):
             if cats[a] == cat:
                 continue
-            da = d[members, a]
+            if any(_stands_on(supports, geom, x, a) or _stands_on(supports, geom, a, x) for x in members) or any(
+                inside[x, a] != FALSE or inside[a, x] != FALSE for x in members
+            ):
+                continue  # a member on the anchor (or carrying it) is 0 m from it: no distance a person sees
+            da, ca = d[members, a], c[members, a]
             for k, i in enumerate(members):
-                others = np.delete(da, k)
+                others, oc = np.delete(da, k), np.delete(ca, k)
                 lo, hi = float(others.min()), float(others.max())
-                if da[k] + max(m, rel * lo) < lo:
+                clo, chi = float(oc.min()), float(oc.max())
+                # the centres must agree by the same gaps (a person judges by where the objects are)
+                if da[k] + max(m, rel * lo) < lo and ca[k] + max(m, rel * clo) < clo:
                     out[i].append((3, f"the {cat} closest to {simple[a]}"))
-                if da[k] - max(m, rel * da[k]) > hi:
+                if da[k] - max(m, rel * da[k]) > hi and ca[k] - max(m, rel * ca[k]) > chi:
                     out[i].append((3, f"the {cat} farthest from {simple[a]}"))
         for i in members:
             s = supports[i]

@@ -11,6 +11,7 @@ measured node attributes and stored distances).
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -49,6 +50,7 @@ class _Scene:
     surfaces: dict[str, tuple[float, Any]]  # name -> (top z, the surface box; None from a stored graph)
     dist: Callable[[int, int], float]
     on: Callable[[int, Any], bool]  # on(i, anchor) -> bool where anchor is ("obj", j) or ("surface", name)
+    cdist: Callable[[int, int], float] | None = None  # box-centre distance (None: not known)
 
 
 def _norm(cat: str) -> str:
@@ -141,6 +143,7 @@ def _from_frame(frame: Frame) -> _Scene:
         surfaces,
         dist,
         on,
+        lambda i, j: float(np.linalg.norm(boxes[i].center - boxes[j].center)),
     )
 
 
@@ -180,6 +183,7 @@ def _from_graph(graph: SceneGraph) -> _Scene:
         {name: (0.0, None) for name in by_name},
         lambda i, j: d.get((i, j), np.inf),
         on,
+        (lambda i, j: math.dist(a[i]["center"], a[j]["center"])) if all("center" in x for x in a) else None,
     )
 
 
@@ -235,6 +239,18 @@ def _superlative(sc: _Scene, members: list[int], feat: str, largest: bool, rank:
     return [members[k] for k in np.flatnonzero(close)]
 
 
+def _nearest_set(
+    dist: Callable[[int, int], float], members: list[int], a: int, closest: bool, tols: dict[str, float]
+) -> set[int]:
+    """Positions in `members` within the generator's gap (absolute and relative) of the nearest (farthest)."""
+    d = np.array([dist(i, a) for i in members])
+    if not len(d):
+        return set()
+    target = d.min() if closest else d.max()
+    tol = np.maximum(tols["dist"], tols["dist_rel"] * np.maximum(d, target))
+    return {int(k) for k in np.flatnonzero(_within(d, target, tol))}
+
+
 def _resolve(sc: _Scene, phrase: str) -> list[int]:
     p = " ".join(phrase.lower().split())
     if not p.startswith("the "):
@@ -254,12 +270,12 @@ def _resolve(sc: _Scene, phrase: str) -> list[int]:
         members = [i for i in members if i != a]
         if m["rel"] == "on":
             return [i for i in members if sc.on(i, ("obj", a))]
-        d = np.array([sc.dist(i, a) for i in members])
-        if not len(d):
-            return []
-        target = d.min() if m["rel"] == "closest to" else d.max()
-        tol = np.maximum(sc.tol["dist"], sc.tol["dist_rel"] * np.maximum(d, target))  # the generator's relative gap
-        return [members[k] for k in np.flatnonzero(_within(d, target, tol))]
+        if any(sc.on(i, ("obj", a)) or sc.on(a, ("obj", i)) for i in members):
+            return members  # one stands on the anchor (or carries it): 0 m apart says nothing, the phrase fits all
+        keep = _nearest_set(sc.dist, members, a, m["rel"] == "closest to", sc.tol)
+        if sc.cdist is not None:  # the centres must single out the same object (where a person sees them)
+            keep |= _nearest_set(sc.cdist, members, a, m["rel"] == "closest to", sc.tol)
+        return [members[k] for k in sorted(keep)]
     m = _ORD_SIDE.match(body)
     if m and (base := _base(sc, m["base"])) is not None:
         if isinstance(base, _Unresolved):

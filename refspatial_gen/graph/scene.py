@@ -176,7 +176,8 @@ class SceneGeom:
             self.img_centroid[i] = ((xs.mean() + x0 + 0.5) / W, (ys.mean() + y0 + 0.5) / H)
             self.img_rows[i] = (y0 / H, y1 / H)
             self.img_cols[i] = (x0 / W, x1 / W)
-            self.points[i] = valid_point(m, x0, y0, W, H)
+            if o.provenance.get("answer_point") is None:  # a scan source may withhold it (sources/scan/surface.py)
+                self.points[i] = valid_point(m, x0, y0, W, H)
             px = mask_pixels(rgb[y0:y1, x0:x1], m)
             self.colour_lab[i] = colour_lab(px, white)
             self.colours[i], self.colour_how[i] = colour_word(

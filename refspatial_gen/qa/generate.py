@@ -194,7 +194,8 @@ def _generate(
     if config.point_depth:  # built-in camera-frame point/depth questions (work on frames without objects)
         from refspatial_gen.qa.pointdepth import point_depth_qa
 
-        out += point_depth_qa(frames, sample_rng, min(config.point_depth, config.max_per_sample - len(out)), len(out))
+        n_pd = min(config.point_depth, config.max_per_sample - len(out))
+        out += point_depth_qa(frames, sample_rng, n_pd, len(out), truth=truth)
     return out
 
 

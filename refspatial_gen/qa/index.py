@@ -18,6 +18,7 @@ from typing import Any
 from refspatial_gen.core.mask import denormalise_point
 from refspatial_gen.core.model import Frame, FreeSpaceRegion, Node, SceneGraph
 from refspatial_gen.graph.relations.base import HOLDS_OF_CODE, Cell
+from refspatial_gen.graph.relations.distances import linked, nested
 from refspatial_gen.graph.tables import RelationTables
 from refspatial_gen.qa.ops.base import REGION_KINDS
 
@@ -289,6 +290,26 @@ class SceneIndex:
                 return None
             out.append(v)
         return out
+
+    def centres_to(self, anchor: int, objects: list[Any]) -> tuple[list[float] | None, bool]:
+        """Centre distances of `objects` to `anchor` from the nodes' stored centres (None when one lacks a
+        centre), and whether one of them stands on the anchor or carries it, or one lies inside the other
+        (graph.relations.distances.linked, nested)."""
+        nodes = self.tables.nodes
+        if nested(self.tables, anchor, *objects):
+            return None, True
+        ca = nodes[anchor].attributes.get("center")
+        out: list[float] | None = [] if ca is not None else None
+        tied = False
+        for x in objects:
+            n = nodes[x]
+            tied = tied or linked(n.support, x, nodes[anchor].support, anchor)
+            cx = n.attributes.get("center")
+            if out is not None and cx is not None and ca is not None:
+                out.append(math.dist(cx, ca))
+            else:
+                out = None
+        return out, tied
 
     # ------------------------------------------------------------------ points and masks
     def point(self, object_id: int) -> tuple[float, float]:

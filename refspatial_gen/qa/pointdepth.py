@@ -25,6 +25,13 @@ CHOICE_MARGIN_REL = 0.03  # share of the larger depth
 MIN_TURN = math.radians(5.0)  # rotations smaller than this have no clear direction
 MIN_DEPTH, MAX_DEPTH = 0.1, 20.0
 KINDS = ("depth", "choice", "rotation_horizontal", "rotation_vertical")
+# A depth question's point needs locally consistent depth (audit round 3: a chair-seat point read the desk behind,
+# splatted ScanNet depth): in a window of WINDOW_HALF px each side at 640 px width (scaled), the share of valid
+# pixels and the p90-p10 depth spread relative to the point's depth; stricter (a wider window) on approximate
+# depth (splatted from points, or estimated from a photo), where a flat-looking patch can belong to what lies behind.
+WINDOW_HALF = {"measured": 4, "approximate": 12}
+WINDOW_VALID = {"measured": 0.9, "approximate": 0.95}
+WINDOW_SPREAD_REL = 0.03
 
 DEPTH_TEXTS = (
     "How far from the camera is the point {p}?",
@@ -69,6 +76,28 @@ def valid_pixels(frame: Frame) -> np.ndarray:
     return np.stack([us, vs], axis=1)
 
 
+def approximate_depth(frame: Frame) -> bool:
+    """Depth splatted from a point cloud or estimated from a photo (not a depth sensor's or a renderer's)."""
+    if frame.meta.get("depth_source") == "splatted_points":
+        return True
+    origin = (frame.meta.get("depth") or {}).get("origin") if isinstance(frame.meta.get("depth"), dict) else None
+    return frame.source == "image" and not str(origin or "").startswith("provided")
+
+
+def consistent_depth(frame: Frame, u: int, v: int) -> bool:
+    """The depth around (u, v) agrees with the point's: WINDOW_VALID of the window valid, p90-p10 within
+    WINDOW_SPREAD_REL of the depth (WINDOW_HALF scaled by the image width over 640)."""
+    kind = "approximate" if approximate_depth(frame) else "measured"
+    d = np.asarray(frame.depth)
+    h = max(1, round(WINDOW_HALF[kind] * frame.camera.width / 640))
+    win = d[max(0, v - h) : v + h + 1, max(0, u - h) : u + h + 1]
+    ok = np.isfinite(win) & (win > 0)
+    if ok.mean() < WINDOW_VALID[kind]:
+        return False
+    p10, p90 = np.percentile(win[ok], [10, 90])
+    return bool(p90 - p10 <= WINDOW_SPREAD_REL * float(d[v, u]))
+
+
 def _snap(frame: Frame, uv: np.ndarray) -> tuple[tuple[float, float], tuple[int, int]] | None:
     """The stored normalised point and the pixel it denormalises to (must still be a reliable pixel)."""
     W, H = frame.camera.width, frame.camera.height
@@ -100,8 +129,8 @@ def turn_angle(frame: Frame, u: int, v: int, axis: str) -> float | None:
 class _Pool:
     """Reliable pixels split by image quadrant; each pick comes from the least-used quadrant (spread answers)."""
 
-    def __init__(self, frame: Frame, pix: np.ndarray) -> None:
-        self.frame = frame
+    def __init__(self, frame: Frame, pix: np.ndarray, truth: dict[str, int] | None = None) -> None:
+        self.frame, self.truth = frame, truth
         W, H = frame.camera.width, frame.camera.height
         q = (2 * pix[:, 0] >= W).astype(int) + 2 * (2 * pix[:, 1] >= H).astype(int)
         self.parts = [pix[q == k] for k in range(4)]
@@ -129,6 +158,14 @@ class _Pool:
             out.append((s[0], s[1], k))
         return [(p, uv) for p, uv, _ in out]
 
+    def consistent(self, got: list[tuple[tuple[float, float], tuple[int, int]]]) -> bool:
+        """Every picked point has locally consistent depth; else counted (point_depth_inconsistent)."""
+        if all(consistent_depth(self.frame, u, v) for _, (u, v) in got):
+            return True
+        if self.truth is not None:
+            self.truth["point_depth_inconsistent"] = self.truth.get("point_depth_inconsistent", 0) + 1
+        return False
+
     def take(self, p: tuple[float, float], uv: tuple[int, int]) -> None:
         W, H = self.frame.camera.width, self.frame.camera.height
         self.used.add(uv)
@@ -136,9 +173,15 @@ class _Pool:
 
 
 def point_depth_qa(
-    frames: list[Frame], rng: np.random.Generator, n: int, start: int = 0, kinds: tuple[str, ...] = KINDS
+    frames: list[Frame],
+    rng: np.random.Generator,
+    n: int,
+    start: int = 0,
+    kinds: tuple[str, ...] = KINDS,
+    truth: dict[str, int] | None = None,
 ) -> list[QAPair]:
-    """Up to `n` checked point/depth QA pairs over the given frames; ids continue from `start`."""
+    """Up to `n` checked point/depth QA pairs over the given frames; ids continue from `start`; `truth`
+    counts the points withheld for inconsistent depth."""
     out: list[QAPair] = []
     if n <= 0 or not frames:
         return out
@@ -149,7 +192,7 @@ def point_depth_qa(
     pix = valid_pixels(frame)
     if len(pix) < 2:
         return out
-    pool = _Pool(frame, pix)
+    pool = _Pool(frame, pix, truth)
     order = [kinds[int(k)] for k in rng.permutation(len(kinds))]
     for attempt in range(4 * n):
         if len(out) >= n:
@@ -170,7 +213,7 @@ def _make(frame: Frame, kind: str, pool: _Pool, rng: np.random.Generator, qa_id:
         steps=1,
         frame_ids=[frame.frame_id],
         image_size=size,
-        checks=["smooth_depth", "outside_margin"],
+        checks=["smooth_depth", "consistent_depth", "outside_margin"],
     )
     if kind == "depth":
         return _make_depth(frame, pool, rng, base)
@@ -183,7 +226,7 @@ def _make_depth(frame: Frame, pool: _Pool, rng: np.random.Generator, base: dict[
     """The metric depth at a query point."""
     d = frame.depth
     got = pool.pick(rng, 1)
-    if not got:
+    if not got or not pool.consistent(got):
         return None
     p, (u, v) = got[0]
     z = float(d[v, u])
@@ -204,7 +247,7 @@ def _make_choice(frame: Frame, pool: _Pool, rng: np.random.Generator, base: dict
     """Which of two query points is nearer (farther): decided only outside the depth margin."""
     d = frame.depth
     got = pool.pick(rng, 2)
-    if len(got) < 2:
+    if len(got) < 2 or not pool.consistent(got):
         return None
     (pa, (ua, va)), (pb, (ub, vb)) = got
     za, zb = float(d[va, ua]), float(d[vb, ub])

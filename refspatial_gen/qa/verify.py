@@ -187,6 +187,10 @@ def _check_point(qa: QAPair, s: dict[str, Any], final: Any, w: World, frame: Fra
         x, y = denormalise_point(p[0], p[1], W, H)
         if not w.mask(oid)[y, x]:
             out.append(f"answer point {p} (pixel {x},{y}) is outside the visible mask of object {oid}")
+        if frame.source == "scan":
+            from refspatial_gen.sources.scan.surface import check_answer_point
+
+            out += check_answer_point(frame, oid, x, y)
     else:
         from refspatial_gen.graph.freespace import check_free_point
 

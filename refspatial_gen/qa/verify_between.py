@@ -38,7 +38,8 @@ def _plane(p: np.ndarray, b: np.ndarray, c: np.ndarray, th: Any, min_span: float
     t = (px * bx + py * by) / (span * span)
     off = abs(px * by - py * bx) / (span * span)
     m, cor = th.between_t_margin, th.between_corridor
-    if m - TOL < t < 1 - m + TOL and off < cor + TOL:
+    taper = min(1.0, min(t, 1 - t) / th.between_taper)
+    if m - TOL < t < 1 - m + TOL and off < cor * taper + TOL:
         return True
     lo, hi, wide = m - th.between_t_band, 1 - m + th.between_t_band, cor + th.between_corridor_band
     if t < lo + TOL or t > hi - TOL or off > wide - TOL:
@@ -56,12 +57,18 @@ def _pixel_centre(w: World, oid: int) -> np.ndarray:
     return np.array([float(uv[0, 0]) + 0.5, float(uv[0, 1]) + 0.5])
 
 
-def _decide(w: World, a: int, b: int, c: int) -> bool | None:
-    """between(a, b, c) in both planes: True when both say so, False when either says clearly not."""
+def _planes(w: World, a: int, b: int, c: int) -> tuple[bool | None, bool | None]:
+    """between(a, b, c) on the ground plane and in the image (each True, False or None)."""
     G, th = w.geom.gravity.rotation, w.geom.th
     ground = {k: (G @ w.objects[k].box.center)[:2] for k in (a, b, c)}
     on_ground = _plane(ground[a], ground[b], ground[c], th, MIN_SPAN_M)
     on_image = _plane(_pixel_centre(w, a), _pixel_centre(w, b), _pixel_centre(w, c), th, MIN_SPAN_PX)
+    return on_ground, on_image
+
+
+def _decide(w: World, a: int, b: int, c: int) -> bool | None:
+    """between(a, b, c) in both planes: True when both say so, False when either says clearly not."""
+    on_ground, on_image = _planes(w, a, b, c)
     if on_ground is False or on_image is False:
         return False
     if on_ground and on_image:
@@ -71,8 +78,8 @@ def _decide(w: World, a: int, b: int, c: int) -> bool | None:
 
 def between_holds(w: World, a: int, b: int, c: int) -> bool | None:
     """between(a, b, c) as a question may ask it: None (undecided) when A is inside a band, touches an
-    anchor, or another object of A's category is not clearly off the segment ("the cup between ..." must
-    name one cup); False when the anchors span no segment on the ground."""
+    anchor, or another object of A's category is not clearly off the segment in both planes ("the cup
+    between ..." must name one cup); False when the anchors span no segment on the ground."""
     G = w.geom.gravity.rotation
     gb, gc = ((G @ w.objects[k].box.center)[:2] for k in (b, c))
     if math.hypot(*(gc - gb)) < MIN_SPAN_M:
@@ -85,6 +92,6 @@ def between_holds(w: World, a: int, b: int, c: int) -> bool | None:
         return None
     cat = w.objects[a].category
     for k in sorted(w.objects):
-        if k not in (a, b, c) and w.objects[k].category == cat and _decide(w, k, b, c) is not False:
+        if k not in (a, b, c) and w.objects[k].category == cat and _planes(w, k, b, c) != (False, False):
             return None
     return True

@@ -19,6 +19,11 @@ from refspatial_gen.qa.verify_units import stated_length
 
 DEPTH_TOL = 0.01  # m: stated depth vs the depth map
 ANGLE_TOL = math.radians(1.0)
+# a queried depth must be locally consistent (the generator's rule, re-checked here with its own code):
+# half-window at 640 px width, share of valid pixels, and p90-p10 spread relative to the depth; the wider
+# window on approximate (splatted or estimated) depth
+_WIN = {False: (4, 0.9), True: (12, 0.95)}
+_SPREAD = 0.03
 _POINT = re.compile(r"\[\((\d\.\d{3}), (\d\.\d{3})\)\]")
 _NUM = re.compile(r"(\d+(?:\.\d+)?) (centimeters?|meters|degrees)")
 
@@ -33,6 +38,32 @@ def _depth(frame: Frame, p: Any) -> float:
     if not (math.isfinite(z) and z > 0):
         raise ValueError(f"no valid depth at pixel ({u}, {v})")
     return z
+
+
+def _approximate(frame: Frame) -> bool:
+    meta = frame.meta
+    dep = meta.get("depth")
+    origin = dep.get("origin", "") if isinstance(dep, dict) else ""
+    if meta.get("depth_source") == "splatted_points":
+        return True
+    return frame.source == "image" and not str(origin).startswith("provided")
+
+
+def _inconsistent(frame: Frame, p: Any) -> str | None:
+    """Why the depth around the point does not support a depth question (None when it does)."""
+    u, v = _pixel(frame, p)
+    half, share = _WIN[_approximate(frame)]
+    k = max(1, int(round(half * frame.camera.width / 640)))
+    h, w = frame.depth.shape[:2]
+    patch = np.asarray(frame.depth, np.float64)[max(v - k, 0) : min(v + k + 1, h), max(u - k, 0) : min(u + k + 1, w)]
+    vals = patch[np.isfinite(patch) & (patch > 0)]
+    if vals.size < share * patch.size:
+        return f"only {vals.size}/{patch.size} valid depths around ({u}, {v})"
+    spread = float(np.quantile(vals, 0.9) - np.quantile(vals, 0.1))
+    z = float(frame.depth[v, u])
+    if spread > _SPREAD * z:
+        return f"depth around ({u}, {v}) spreads {spread:.3f} m (> {_SPREAD:.0%} of {z:.3f} m)"
+    return None
 
 
 def _stated(answer: str) -> float | None:
@@ -78,6 +109,8 @@ def verify_point_depth(qa: QAPair, frame: Frame) -> list[str]:
     out: list[str] = []
     try:
         q = s.get("quantity")
+        if q == "depth" or s.get("kind") == "choice":
+            out += [w for w in (_inconsistent(frame, p) for p in pts) if w is not None]
         if s.get("kind") == "number" and q == "depth":
             z = _depth(frame, pts[0])
             if abs(float(s["value"]) - z) > DEPTH_TOL:

@@ -71,7 +71,8 @@ def segment_position(
     t = (rel[..., 0] * u[:, None, 0] + rel[..., 1] * u[:, None, 1]) / Ls
     lat = np.abs(rel[..., 1] * u[:, None, 0] - rel[..., 0] * u[:, None, 1]) / Ls
     m, cor = th.between_t_margin, th.between_corridor
-    yes = (t > m) & (t < 1 - m) & (lat < cor) & ok[:, None]
+    taper = np.minimum(1.0, np.minimum(t, 1 - t) / th.between_taper)
+    yes = (t > m) & (t < 1 - m) & (lat < cor * taper) & ok[:, None]
     no = ((t < m - th.between_t_band) | (t > 1 - m + th.between_t_band) | (lat > cor + th.between_corridor_band)) & ok[
         :, None
     ]
@@ -103,6 +104,7 @@ def between_arrays(
     _ti, yes_i, no_i = segment_position(uv, B, C, th, MIN_BETWEEN_PX)
     yes = yes_w & yes_i
     cand = ~(no_w | no_i)
+    rival = ~(no_w & no_i)  # a same-category object is out of the running only when clearly off in both planes
     rows = np.arange(len(B))
     cand[rows, B] = False
     cand[rows, C] = False
@@ -113,7 +115,9 @@ def between_arrays(
     cat = np.array([labels.setdefault(str(c), len(labels)) for c in categories])
     same = cat[:, None] == cat[None, :]
     np.fill_diagonal(same, False)
-    ambiguous = (cand.astype(np.int64) @ same.astype(np.int64)) > 0
+    rival[rows, B] = False
+    rival[rows, C] = False
+    ambiguous = (rival.astype(np.int64) @ same.astype(np.int64)) > 0
     code = np.where(yes & clear & ~ambiguous, TRUE, UNDECIDED)
     return B, C, cand, code, t
 

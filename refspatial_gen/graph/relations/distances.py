@@ -8,6 +8,7 @@ attributes for questions that ask for them.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
@@ -95,11 +96,42 @@ def close_margin(d_ac: float, d_bc: float, th: Thresholds) -> float:
     return max(th.distance_margin, th.distance_margin_rel * max(d_ac, d_bc))
 
 
-def close_value(d_ac: float, d_bc: float, th: Thresholds) -> tuple[bool | None, float, float]:
-    """close(A, B, C): A is closer to C than B is; (decision, value = d(B, C) - d(A, C), margin)."""
+def close_value(
+    d_ac: float, d_bc: float, th: Thresholds, c_ac: float | None = None, c_bc: float | None = None
+) -> tuple[bool | None, float, float]:
+    """close(A, B, C): A is closer to C than B is; (decision, value = d(B, C) - d(A, C), margin). With the
+    centre distances c_*, the decision holds only when the centres order A and B the same way by their own
+    margin: a person judges by where the objects are, and a mouse lying in a tray is 0 m from it by surfaces
+    (audit round 3)."""
     v = d_bc - d_ac
     m = close_margin(d_ac, d_bc, th)
-    return decide(v, m), v, m
+    holds = decide(v, m)
+    if holds is not None and c_ac is not None and c_bc is not None:
+        if decide(c_bc - c_ac, close_margin(c_ac, c_bc, th)) is not holds:
+            holds = None
+    return holds, v, m
+
+
+def centre_agrees(c_best: float, c_other: float, farthest: bool, th: Thresholds) -> bool:
+    """The centre distances put the surface winner ahead of another candidate by their own close margin."""
+    gap = (c_best - c_other) if farthest else (c_other - c_best)
+    return bool(gap > close_margin(c_best, c_other, th))
+
+
+def nested(t: RelationTables, *ids: Any) -> bool:
+    """The first object and any other lie one inside the other (stored inside true or undecided)."""
+    for x in ids[1:]:
+        for pair in ((ids[0], x), (x, ids[0])):
+            c = t.cell("inside", pair)
+            if c is not None and c.holds is not False:
+                return True
+    return False
+
+
+def linked(support_a: str | None, a: Any, support_b: str | None, b: Any) -> bool:
+    """A stands on B or B on A (a stored node's `support`, "obj:<id>"): their distance is 0 by construction
+    and says nothing a person would call "close" (the mouse in the tray)."""
+    return support_a == f"obj:{b}" or support_b == f"obj:{a}"
 
 
 def _count_close(geom: SceneGeom) -> list[RelationFact]:
@@ -116,11 +148,40 @@ def _count_close(geom: SceneGeom) -> list[RelationFact]:
     rel = (gap > th.distance_margin) & (gap <= th.distance_margin_rel * np.maximum(dac, dbc))
     distinct = (np.arange(n)[:, None] < np.arange(n)[None, :])[:, :, None]
     distinct = distinct & ~np.eye(n, dtype=bool)[:, None, :] & ~np.eye(n, dtype=bool)[None, :, :]
-    k = int(np.count_nonzero(rel & distinct & np.isfinite(dac) & np.isfinite(dbc)))
+    ok = distinct & np.isfinite(dac) & np.isfinite(dbc)
+    k = int(np.count_nonzero(rel & ok))
+    c = geom.center_distance
+    cac, cbc = c[:, None, :], c[None, :, :]
+    sm = np.maximum(th.distance_margin, th.distance_margin_rel * np.maximum(dac, dbc))
+    cm = np.maximum(th.distance_margin, th.distance_margin_rel * np.maximum(cac, cbc))
+    s_dec = np.sign(dbc - dac) * (np.abs(dbc - dac) > sm)
+    c_dec = np.sign(cbc - cac) * (np.abs(cbc - cac) > cm)
+    kc = int(np.count_nonzero(ok & (s_dec != 0) & (c_dec != s_dec)))
+    truth = geom.cache.setdefault("truth", {})
     if k:
-        truth = geom.cache.setdefault("truth", {})
         truth["distance_undecided_ratio"] = truth.get("distance_undecided_ratio", 0) + k
+    if kc:
+        truth["distance_centre_disagrees"] = truth.get("distance_centre_disagrees", 0) + kc
     return []
+
+
+def _supported_pairs(geom: SceneGeom) -> set[tuple[int, int]]:
+    """Positions (i, k) where i stands on object k or k on i (graph.support's rule, recomputed), or one lies
+    inside the other (inside true or undecided: the mouse in the tray)."""
+    from refspatial_gen.graph.relations.containment import _inside
+    from refspatial_gen.graph.support import get_supports
+
+    sup, _ = get_supports(geom)
+    codes = _inside(geom)[1]
+    out: set[tuple[int, int]] = set()
+    for i, k in zip(*np.nonzero((codes == TRUE) | (codes == UNDECIDED))):
+        if i != k:
+            out.update({(int(i), int(k)), (int(k), int(i))})
+    for i, s in enumerate(sup):
+        if s is not None and s.kind == "object":
+            k = geom.index[int(s.ref)]
+            out.update({(i, k), (k, i)})
+    return out
 
 
 def _close_eval(mirror: bool) -> Callable[..., RelationFact]:
@@ -130,8 +191,11 @@ def _close_eval(mirror: bool) -> Callable[..., RelationFact]:
         i, j, k = pos(geom, a), pos(geom, b), pos(geom, c)
         if mirror:
             i, j = j, i
-        d = geom.surface_distance
-        holds, v, m = close_value(float(d[i, k]), float(d[j, k]), geom.th)
+        d, c = geom.surface_distance, geom.center_distance
+        holds, v, m = close_value(float(d[i, k]), float(d[j, k]), geom.th, float(c[i, k]), float(c[j, k]))
+        sup = cached(geom, "dist:supported", _supported_pairs)
+        if (i, k) in sup or (j, k) in sup:
+            holds = None
         return RelationFact("far" if mirror else "close", (a, b, c), holds, v, m)
 
     return evaluate
@@ -176,7 +240,15 @@ def _close_cell(t: RelationTables, args: tuple[Any, ...]) -> Cell | None:
     dac, dbc = d[a][c], d[b][c]
     if dac == _INF or dbc == _INF:
         return None
-    holds, v, m = close_value(dac, dbc, t.th)
+    ids = (args[0], args[1], args[2])
+    ctr = [t.nodes[x].attributes.get("center") for x in ids]
+    cac = cbc = None
+    if ctr[0] is not None and ctr[1] is not None and ctr[2] is not None:
+        cac, cbc = math.dist(ctr[0], ctr[2]), math.dist(ctr[1], ctr[2])
+    holds, v, m = close_value(dac, dbc, t.th, cac, cbc)
+    sa, sb, sc = (t.nodes[x].support for x in ids)
+    if linked(sa, ids[0], sc, ids[2]) or linked(sb, ids[1], sc, ids[2]) or nested(t, ids[2], ids[0], ids[1]):
+        holds = None
     return Cell(holds, v, m)
 
 

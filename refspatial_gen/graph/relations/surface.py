@@ -56,8 +56,14 @@ def surface_labels(geom: SceneGeom) -> dict[str, dict[str, Any]]:
                     ("left edge", np.pi),
                     ("near edge", -np.pi / 2),
                 ):
-                    if abs((ang - centre + np.pi) % (2 * np.pi) - np.pi) < EDGE_AXIS_TOLERANCE:
-                        entry["edges"][label] = (a, b)
+                    if abs((ang - centre + np.pi) % (2 * np.pi) - np.pi) >= EDGE_AXIS_TOLERANCE:
+                        continue
+                    if np.ptp(poly @ n) < g.th.edge_depth_factor * g.th.edge_band:
+                        # a shallow shelf: every object on it is near both edges along n (audit round 3)
+                        truth = g.cache.setdefault("truth", {})
+                        truth["edge_shallow_surface"] = truth.get("edge_shallow_surface", 0) + 1
+                        continue
+                    entry["edges"][label] = (a, b)
         return out
 
     return cached(geom, "surface:labels", f)
@@ -216,7 +222,8 @@ for _rel, _value, _margin, _definition in (
         "edge",
         "inward distance from the labelled edge to A's footprint (m)",
         "edge_band, surface_band_margin",
-        "A (or a free point) lies within a band along one edge of a support surface (e.g. the right edge)",
+        "A (or a free point) lies within a band along one edge of a support surface (e.g. the right edge); "
+        "edges of a surface shallower than edge_depth_factor edge bands along the edge's normal get no name",
     ),
 ):
     register(

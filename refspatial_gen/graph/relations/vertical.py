@@ -18,6 +18,7 @@ from refspatial_gen.graph.relations.common import (
     UNDECIDED,
     Matrices,
     cached,
+    count,
     decide_matrix,
     fact,
     pair_evaluator,
@@ -50,6 +51,12 @@ def _above(geom: SceneGeom) -> Matrices:
         codes[overlap > tol] = UNDECIDED
         codes[stacked & (v > 0)] = TRUE
         codes[stacked.T & (v < 0)] = FALSE
+        # bottoms at one level (a flat pen and a can on one tabletop, audit round 3): both rest on the same
+        # surface, so neither is above the other, however thin one of them is
+        same = np.abs(g.lo[:, None, 2] - g.lo[None, :, 2]) <= tol
+        np.fill_diagonal(same, False)
+        count(g, "vertical_same_level", same & (codes != UNDECIDED))
+        codes[same] = UNDECIDED
         np.fill_diagonal(codes, UNDECIDED)
         return v, codes, g.th.vertical_margin
 
@@ -152,7 +159,8 @@ register(
         "centre height of A minus B's (m)",
         "vertical_margin, stack_tolerance",
         "A's bottom is at or above B's top, or A's centre is higher by the margin and their heights do not "
-        "overlap by more than the stack tolerance (gravity frame)",
+        "overlap by more than the stack tolerance (gravity frame); never when both bottoms are within the "
+        "stack tolerance of each other (resting on one surface)",
         needs=G,
         qa="ordered",
         evaluate=pair_evaluator(_above, "above_world"),

@@ -7,7 +7,7 @@ from typing import Any
 
 from refspatial_gen.graph.constants import Thresholds
 from refspatial_gen.graph.relations import REGISTRY
-from refspatial_gen.graph.relations.distances import close_margin
+from refspatial_gen.graph.relations.distances import centre_agrees, close_margin
 from refspatial_gen.qa.index import NO_FACT, Reject, SceneIndex
 from refspatial_gen.qa.program import Ref, Step, StepFn
 from refspatial_gen.qa.values import Context
@@ -134,7 +134,10 @@ def winner(cands: Any, rel: str, anchor: int | None, idx: SceneIndex) -> int:
     if is_anchored and anchor is not None:
         d = idx.distances_to(anchor, cands)
         if d is not None:
-            return nearest_winner(cands, d, REGISTRY[rel].mirror_of is not None, idx.tables.th)  # type: ignore[arg-type]
+            c, tied = idx.centres_to(anchor, cands)
+            if tied:
+                raise Reject("distance_supported")
+            return nearest_winner(cands, d, REGISTRY[rel].mirror_of is not None, idx.tables.th, c)  # type: ignore[arg-type]
     # a quick elimination pass finds the only possible winner, then it is checked against everyone
     decision = idx.decision
 
@@ -164,7 +167,9 @@ def winner(cands: Any, rel: str, anchor: int | None, idx: SceneIndex) -> int:
     return best
 
 
-def nearest_winner(cands: list[int], d: list[float], farthest: bool, th: Thresholds) -> int:
+def nearest_winner(
+    cands: list[int], d: list[float], farthest: bool, th: Thresholds, c: list[float] | None = None
+) -> int:
     """winner() for close/far from the distances of the candidates to the anchor: close(x, y, c) holds when
     d(y, c) - d(x, c) exceeds close_margin (distance_margin and distance_margin_rel of the larger; far: the
     other way round), so the winner is the nearest (farthest) candidate, and it wins only if it beats the
@@ -175,6 +180,9 @@ def nearest_winner(cands: list[int], d: list[float], farthest: bool, th: Thresho
     best = d[k]
     runner = max(v for i, v in enumerate(d) if i != k) if farthest else min(v for i, v in enumerate(d) if i != k)
     gap = (best - runner) if farthest else (runner - best)
-    if gap > close_margin(best, runner, th):
-        return cands[k]
-    raise Reject("margin")
+    if gap <= close_margin(best, runner, th):
+        raise Reject("margin")
+    if c is not None:  # the centres must put the winner ahead of every other by their own margin too
+        if not all(centre_agrees(c[k], v, farthest, th) for i, v in enumerate(c) if i != k):
+            raise Reject("distance_centre_disagrees")
+    return cands[k]

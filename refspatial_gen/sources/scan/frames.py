@@ -14,6 +14,8 @@ from refspatial_gen.core.mask import RLE
 from refspatial_gen.core.model import Frame, ObjectInstance, SupportSurface
 from refspatial_gen.sources.scan.gravity import fit_floor
 from refspatial_gen.sources.scan.splat import point_spacing, splat_depth
+from refspatial_gen.sources.scan.surface import REASON as RECESSED
+from refspatial_gen.sources.scan.surface import withhold_recessed
 from refspatial_gen.sources.scan.view import ScanBox, ScanView
 from refspatial_gen.sources.scan.visibility import object_visibility
 from refspatial_gen.truth.labels import UNRELIABLE, unreliable_label
@@ -32,6 +34,7 @@ DEFAULTS: dict[str, Any] = {
     "withhold_unexplained_floor": True,
     "unexplained_min_points": 20,
     "unlabelled_stand_ins": True,
+    "max_point_recess": 0.30,
 }
 
 SUPPORT_KINDS = {
@@ -213,6 +216,10 @@ def view_to_frame(view: ScanView, config: dict[str, Any]) -> Frame:
     floor_z = None if floor is None else floor.box.top_z
     objects, counts = _stand_ins(view, cam, depth, owner, objects, floor_z, config)
     truth.update(counts)
+    meta["max_point_recess"] = float(cfg(config, "max_point_recess"))
+    recessed = withhold_recessed(objects, cam, depth, meta["max_point_recess"])
+    if recessed:
+        truth[RECESSED] = recessed
     surfaces: list[SupportSurface] = []
     if floor_z is not None:
         surfaces.append(floor)

@@ -46,6 +46,13 @@ CONFIG_FIELDS: dict[str, Field] = {
         doc="use per-point instance labels when the scan has them: a "
         "box's mask keeps only pixels showing its own instance",
     ),
+    "max_point_recess": Field(
+        float,
+        default=0.30,
+        min=0.0,
+        doc="box-only masks: metres an answer point may lie behind the box's entry face (else withheld: a TV in "
+        "a cabinet's niche)",
+    ),
     "withhold_unexplained_floor": Field(
         bool,
         default=True,
