@@ -112,7 +112,7 @@ AUDIT_DATA ?= out/audit-data
 AUDIT_OUT ?= out/audit
 AUDIT_N ?= 150
 AUDIT_SEED ?= 0
-AUDIT_RUN = $(BIN)/refspatial-gen shards --quiet --workers $(WORKERS)
+AUDIT_RUN = $(BIN)/refspatial-gen shards --quiet --fresh --workers $(WORKERS)
 audit: setup assets-shared
 	$(AUDIT_RUN) --recipe recipes/default.yaml --scenes 24 --out $(AUDIT_DATA)/sim
 	$(AUDIT_RUN) --recipe recipes/sim_ycb.yaml --scenes 24 --out $(AUDIT_DATA)/ycb

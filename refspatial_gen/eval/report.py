@@ -16,8 +16,8 @@ def _rates_plot(path: Path, rows: dict[str, dict], title: str, xlabel: str) -> N
     fig = agg_figure(8, max(1.8, 0.9 + 0.3 * len(keys)))
     ax = fig.add_subplot()
     rates = [rows[k]["success_rate"] for k in keys]
-    lo = [rows[k]["success_rate"] - rows[k]["ci95"][0] for k in keys]
-    hi = [rows[k]["ci95"][1] - rows[k]["success_rate"] for k in keys]
+    lo = [max(0.0, rows[k]["success_rate"] - rows[k]["ci95"][0]) for k in keys]  # rounded apart: no -1e-4
+    hi = [max(0.0, rows[k]["ci95"][1] - rows[k]["success_rate"]) for k in keys]
     ax.barh(range(len(keys)), rates, xerr=[lo, hi], color="#4c72b0", ecolor="#333333", capsize=3)
     ax.set_yticks(range(len(keys)), [f"{k}  (n={rows[k]['n']})" for k in keys], fontsize=9)
     ax.set_xlim(0, 1.0)

@@ -20,6 +20,9 @@ Recipe (`graph: truth:`, every key optional; docs/quality.md has the measurement
 pixel lengths are for a 640x480 image and scale with sqrt(width * height / (640 * 480))):
   min_visible_px             visible mask pixels an object needs (default 150)
   min_visible_fraction       visible / unoccluded projected pixels, where the source knows it (default 0.5)
+  min_photo_area_fraction    on photos (an estimated metric scale, no occlusion estimate): visible mask pixels
+                             over the image's pixels an object needs (default 0.004: a toilet glimpsed as a
+                             sliver behind a door frame, a chair seen through a far doorway; audit round 3)
   min_in_view_fraction       share of the object's 3D box inside the camera's view (default 0.5)
   min_thickness_px           a mask whose largest inscribed disc has a smaller radius (default 6 px) ...
   min_thickness_ratio        ... and under this share of the half-size its middle box extent projects to
@@ -27,6 +30,10 @@ pixel lengths are for a 640x480 image and scale with sqrt(width * height / (640 
   min_whole_in_view          an object with less of its box in view, or a mask reaching the border, is cut:
                              no size question, no front (default 0.9)
   min_front_visible_fraction a front (facing, angle) needs this visible fraction (default 0.7)
+  min_front_height_ratio     a front also needs the object's height at least this share of its smaller horizontal
+                             extent (default 0.4): a book or notebook lying flat has no facing a person can
+                             judge (its spine points along the table; audit round 3). Measured: books <= 0.28,
+                             notebooks 0.07, scissors 0.11; every other object with a front >= 0.52
   min_point_clearance_px     free-space answer points keep this far from every object's mask and from the
                              image border (default 20 px; graph/freespace.py)
   size_tolerance             widen every category size range by this fraction (default 0.0)
@@ -46,16 +53,19 @@ DEFAULTS: dict[str, float] = {
     "min_visible_px": 150,
     "min_visible_fraction": 0.5,
     "min_in_view_fraction": 0.5,
+    "min_photo_area_fraction": 0.004,
     "min_thickness_px": 6.0,
     "min_thickness_ratio": 0.25,
     "min_whole_in_view": 0.9,
     "min_front_visible_fraction": 0.7,
+    "min_front_height_ratio": 0.4,
     "min_point_clearance_px": 20.0,
     "size_tolerance": 0.0,
 }
 _DOCS = {
     "min_visible_px": (int, 1_000_000, "visible mask pixels every referent, option and mark needs"),
     "min_visible_fraction": (float, 1.0, "visible / unoccluded projected pixels (where the source measures it)"),
+    "min_photo_area_fraction": (float, 1.0, "photos: visible mask pixels / image pixels every referent needs"),
     "min_in_view_fraction": (float, 1.0, "share of the object's 3D box inside the camera's view (image border cut)"),
     "min_thickness_px": (
         float,
@@ -69,6 +79,7 @@ _DOCS = {
     ),
     "min_whole_in_view": (float, 1.0, "box share in view below which (or a mask at the border) an object is cut"),
     "min_front_visible_fraction": (float, 1.0, "visible fraction an object needs for its front (facing, angle)"),
+    "min_front_height_ratio": (float, 100.0, "height / smaller horizontal extent an object needs for its front"),
     "min_point_clearance_px": (
         float,
         1000.0,
@@ -81,11 +92,13 @@ TRUTH_FIELDS: dict[str, Field] = {
 }
 # reasons (graph.meta["truth"] keys, node attribute "below_floor")
 FEW_PIXELS, LOW_FRACTION, OUT_OF_VIEW = "below_floor_pixels", "below_floor_fraction", "below_floor_border"
+PHOTO_SMALL = "below_floor_photo_area"  # photos: too small a share of the image to make out
 THIN = "below_floor_thin"  # the visible mask is a sliver of an object that is not thin itself
 SCALE_UNVERIFIED = "metric_scale_unverified"
 CUT_BY_BORDER = "cut_by_border"  # the mask reaches the image border (or the box is not whole in view)
 OCCLUDED = "occluded_in_front"  # photos: another object in front hides part of it (its foot)
-FRONT_CUT, FRONT_HIDDEN = "front_withheld_cut_by_border", "front_withheld_hidden"  # node attribute front_check
+FRONT_CUT, FRONT_HIDDEN = "front_withheld_cut_by_border", "front_withheld_hidden"
+FRONT_LYING = "front_withheld_lying"  # lying flat (a book, a notebook): no facing a person can judge
 SIZE_CUT = "no_size_cut_by_border"  # graph.meta["truth"]: objects asked no size question (node: sized False)
 BORDER_PX = 3  # mask pixels in the outer BORDER_PX rows/columns (within 2 px of the edge) touch the border
 GRID = 12  # points per box axis for the in-view share (share error <= 1/24 for a border cut)
@@ -102,6 +115,8 @@ class Floor:
     min_whole_in_view: float = DEFAULTS["min_whole_in_view"]
     min_front_visible_fraction: float = DEFAULTS["min_front_visible_fraction"]
     min_point_clearance_px: float = DEFAULTS["min_point_clearance_px"]
+    min_photo_area_fraction: float = DEFAULTS["min_photo_area_fraction"]
+    min_front_height_ratio: float = DEFAULTS["min_front_height_ratio"]
 
     def to_json(self) -> dict[str, float]:
         """Stored as graph.meta["truth_floor"]: verify (qa/verify_truth.py) re-checks against it."""
@@ -194,15 +209,24 @@ def is_sliver(radius: float, half: float, floor: Floor, scale: float) -> bool:
     return radius < floor.min_thickness_px * scale and radius < floor.min_thickness_ratio * half
 
 
+def is_photo(frame: Any) -> bool:
+    """A photo: its metric scale is estimated (a dict in frame.meta), and no source measures occlusion, so
+    every object reports visible_fraction 1.0 and only its share of the image says whether it can be made out."""
+    return isinstance(frame.meta.get("metric_scale"), dict)
+
+
 def floor_reasons(geom: Any, floor: Floor, masks: list[np.ndarray | None]) -> list[str | None]:
     """Per object position: why it is below the visibility floor, or None."""
     out: list[str | None] = []
     cam = geom.frame.camera
     scale = px_scale(cam.width, cam.height)
+    photo_px = floor.min_photo_area_fraction * cam.width * cam.height if is_photo(geom.frame) else 0.0
     for i, o in enumerate(geom.frame.objects):
         m = masks[i]
         if int(geom.mask_area[i]) < floor.min_visible_px or m is None:
             out.append(FEW_PIXELS)
+        elif int(geom.mask_area[i]) < photo_px:
+            out.append(PHOTO_SMALL)
         elif float(o.visible_fraction) < floor.min_visible_fraction:
             out.append(LOW_FRACTION)
         elif geom.in_view[i] < floor.min_in_view_fraction:
@@ -226,9 +250,12 @@ def cut_reasons(geom: Any, floor: Floor, masks: list[np.ndarray | None]) -> list
 
 
 def front_reasons(geom: Any, floor: Floor, cut: list[str | None]) -> list[str | None]:
-    """Per object position with a front: why its front is withheld (cut by the border, or less than
-    `min_front_visible_fraction` seen: a toy car's front cannot be told from its back), or None."""
+    """Per object position with a front: why its front is withheld (cut by the border, less than
+    `min_front_visible_fraction` seen: a toy car's front cannot be told from its back; or lying flat, its
+    height under `min_front_height_ratio` of its smaller horizontal extent: a book's spine), or None."""
     out: list[str | None] = []
+    fp = np.asarray(geom.footprints, float).reshape(-1, 4, 2)
+    smaller = np.minimum(np.linalg.norm(fp[:, 1] - fp[:, 0], axis=1), np.linalg.norm(fp[:, 2] - fp[:, 1], axis=1))
     for i, o in enumerate(geom.frame.objects):
         if not geom.has_front[i]:
             out.append(None)
@@ -236,6 +263,8 @@ def front_reasons(geom: Any, floor: Floor, cut: list[str | None]) -> list[str | 
             out.append(FRONT_CUT)
         elif float(o.visible_fraction) < floor.min_front_visible_fraction:
             out.append(FRONT_HIDDEN)
+        elif float(geom.height[i]) < floor.min_front_height_ratio * float(smaller[i]):
+            out.append(FRONT_LYING)
         else:
             out.append(None)
     return out

@@ -78,6 +78,14 @@ def _box_in_view(frame: Frame, box: Any) -> float:
     return float(ok.mean())
 
 
+def _photo(frame: Frame) -> bool:
+    return isinstance((frame.meta or {}).get("metric_scale"), dict)  # an estimated scale: a photo
+
+
+def _pixels(frame: Frame) -> int:
+    return int(frame.camera.width * frame.camera.height)
+
+
 def below_floor(frame: Frame, floor: dict[str, Any]) -> dict[int, str]:
     """Objects of the stored frame under the recorded floor, with why (recomputed from masks and boxes)."""
     out: dict[int, str] = {}
@@ -85,6 +93,8 @@ def below_floor(frame: Frame, floor: dict[str, Any]) -> dict[int, str]:
         px = 0 if o.mask is None else int(o.mask.decode().sum())
         if px < int(floor.get("min_visible_px", 0)):
             out[o.id] = f"{px} visible pixels < {floor['min_visible_px']}"
+        elif _photo(frame) and px < float(floor.get("min_photo_area_fraction", 0.0)) * _pixels(frame):
+            out[o.id] = f"{px / _pixels(frame):.4f} of the photo < {floor['min_photo_area_fraction']}"
         elif float(o.visible_fraction) < float(floor.get("min_visible_fraction", 0.0)):
             out[o.id] = f"visible fraction {o.visible_fraction:.3f} < {floor['min_visible_fraction']}"
         elif _box_in_view(frame, o.box) < float(floor.get("min_in_view_fraction", 0.0)) - IN_VIEW_TOL:
@@ -223,9 +233,20 @@ def _fronts(qa: QAPair, frame: Frame, graph: SceneGraph, named: set[int], floor:
         why = _cut(frame, o, floor)
         if why is None and float(o.visible_fraction) < need:
             why = f"visible fraction {o.visible_fraction:.3f} < {need}"
+        if why is None and (flat := _flatness(o.box)) < float(floor.get("min_front_height_ratio", 0.0)):
+            why = f"lying flat: height / smaller horizontal extent {flat:.2f} < {floor['min_front_height_ratio']}"
         if why is not None:
             out.append(f"orientation question reads the front of object {i} ({o.category}): {why}")
     return out
+
+
+def _flatness(box: Any) -> float:
+    """Height over the smaller side of the minimum-area rectangle around the box's corners seen from above."""
+    import cv2
+
+    c = np.asarray(box.corners(), float)
+    (_, (a, b), _) = cv2.minAreaRect(c[:, :2].astype(np.float32))
+    return float(np.ptp(c[:, 2]) / max(min(a, b), 1e-9))
 
 
 def _phrase_changes(qa: QAPair, frame: Frame, low: set[int]) -> list[str]:
