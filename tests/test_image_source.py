@@ -320,6 +320,28 @@ def test_recipe_rejects_bad_depth_options(tmp_path):
     assert "never downloaded" in str(e.value)
 
 
+@pytest.mark.parametrize(
+    "key,value,line,words",
+    [
+        ("incomplete_categories", "[[1, 2]]", 5, "list of category names"),
+        ("incomplete_categories", "[person, 3]", 5, "list of category names"),
+        ("categories", "[cup, '']", 5, "list of category names"),
+        ("foot_border_margin", "0.9", 5, "<= 0.5"),
+        ("incomplete_min_instances", "0", 5, ">= 1"),
+        ("composite_max_std", "300", 5, "<= 255"),
+    ],
+)
+def test_recipe_rejects_bad_photo_rule_keys(tmp_path, key, value, line, words):
+    """The photo truth rules' keys are checked before any work, with file:line (a non-string category
+    name used to pass: reliability mutation `incomplete_categories.0 of the wrong type`)."""
+    from refspatial_gen.recipe import load_recipe
+
+    (tmp_path / "r.yaml").write_text(f"name: x\nsources:\n  - kind: image\n    config:\n      {key}: {value}\n")
+    with pytest.raises(RecipeErrors) as e:
+        load_recipe(tmp_path / "r.yaml", input_path="/tmp")
+    assert f"r.yaml:{line}" in str(e.value) and words in str(e.value) and key in str(e.value)
+
+
 def test_shipped_recipes_load():
     from refspatial_gen.recipe import load_recipe
 

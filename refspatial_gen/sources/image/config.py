@@ -28,6 +28,12 @@ def _pair_check(v: Any) -> str | None:
     return None
 
 
+def _names_check(v: Any) -> str | None:
+    """A list of category names: a number or a nested list would never match a category and pass silently."""
+    bad = [x for x in v if not (isinstance(x, str) and x.strip())]
+    return f"must be a list of category names, got {bad[0]!r}" if bad else None
+
+
 CONFIG_FIELDS: dict[str, Field] = {
     "format": Field(str, default="auto", choices=FORMATS, doc="annotation format of the input folder"),
     "annotations": Field(str, default=None, doc="annotation file inside the input folder (default: detected)"),
@@ -49,7 +55,9 @@ CONFIG_FIELDS: dict[str, Field] = {
     "camera_height": Field(float, default=1.5, min=0.05, doc="camera height prior (m)"),
     "camera_pitch_deg": Field(float, default=0.0, min=-60.0, max=80.0, doc="downward pitch prior (deg)"),
     "max_tilt_deg": Field(float, default=40.0, min=1.0, max=89.0, doc="largest tilt of a plane taken as horizontal"),
-    "categories": Field(list, default=None, doc="only these categories become objects (default: all things)"),
+    "categories": Field(
+        list, default=None, check=_names_check, doc="only these categories become objects (default: all things)"
+    ),
     "min_mask_area": Field(int, default=200, min=1, doc="smallest visible mask (pixels)"),
     "min_mask_fraction": Field(float, default=0.0005, min=0.0, max=1.0, doc="smallest mask as a fraction of the image"),
     "min_valid_depth_fraction": Field(float, default=0.3, min=0.0, max=1.0),
@@ -123,6 +131,7 @@ CONFIG_FIELDS: dict[str, Field] = {
     "incomplete_categories": Field(
         list,
         default=["person"],
+        check=_names_check,
         doc="categories never trusted complete on photos (COCO leaves background people unannotated)",
     ),
     "perception": perception_field(),  # unlabelled photos: annotations from local models (docs/perception.md)
