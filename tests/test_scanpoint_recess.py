@@ -6,8 +6,9 @@ from dataclasses import replace
 
 from refspatial_gen.core.mask import answer_pixel
 from refspatial_gen.graph import build_graph
+from refspatial_gen.qa.verify_recess import check_recess as check_answer_point
 from refspatial_gen.sources.scan import load_frame
-from refspatial_gen.sources.scan.surface import REASON, WITHHELD, check_answer_point
+from refspatial_gen.sources.scan.surface import REASON, WITHHELD
 
 
 def test_scannet_tv_unit_cabinet_gets_no_point_in_its_niche(shared_data):

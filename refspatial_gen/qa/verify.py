@@ -22,6 +22,7 @@ from refspatial_gen.qa.ops import OPS
 from refspatial_gen.qa.verify_nesting import check_nesting
 from refspatial_gen.qa.verify_nesting import walk as _walk
 from refspatial_gen.qa.verify_photo import check_photo
+from refspatial_gen.qa.verify_recess import check_recess
 from refspatial_gen.qa.verify_truth import check_truth
 from refspatial_gen.qa.verify_units import LENGTHS, check_length_text, check_size_step
 from refspatial_gen.qa.verify_world import ANGLE_TOL, LENGTH_ABS_TOL, LENGTH_REL_TOL, Fail, Run, Undecided, World, _size
@@ -188,9 +189,7 @@ def _check_point(qa: QAPair, s: dict[str, Any], final: Any, w: World, frame: Fra
         if not w.mask(oid)[y, x]:
             out.append(f"answer point {p} (pixel {x},{y}) is outside the visible mask of object {oid}")
         if frame.source == "scan":
-            from refspatial_gen.sources.scan.surface import check_answer_point
-
-            out += check_answer_point(frame, oid, x, y)
+            out += check_recess(frame, oid, x, y)
     else:
         from refspatial_gen.graph.freespace import check_free_point
 

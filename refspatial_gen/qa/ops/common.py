@@ -135,7 +135,7 @@ def winner(cands: Any, rel: str, anchor: int | None, idx: SceneIndex) -> int:
         d = idx.distances_to(anchor, cands)
         if d is not None:
             c, tied = idx.centres_to(anchor, cands)
-            if tied:
+            if tied and len(cands) > 1:  # one candidate is compared with nothing (as the pairwise path)
                 raise Reject("distance_supported")
             return nearest_winner(cands, d, REGISTRY[rel].mirror_of is not None, idx.tables.th, c)  # type: ignore[arg-type]
     # a quick elimination pass finds the only possible winner, then it is checked against everyone

@@ -48,7 +48,7 @@ def decode_depth_array(raw: np.ndarray, encoding: str) -> np.ndarray:
 def read_depth(path: str | Path, encoding: str = "mm") -> np.ndarray:
     """A depth file (16-bit PNG in the given encoding, or .npy metres) -> float32 metres.
 
-    NaN or an all-zero map is NOT rejected here: `frames.check_depth` does that with its own reason codes.
+    NaN or an all-zero map is NOT rejected here: `checks.check_depth` does that with its own reason codes.
     """
     import cv2
 

@@ -5,7 +5,7 @@ inside the box (a TV in a TV unit's niche, an office chair under a desk) is part
 interior pole can land on it. Box-shaped furniture shows its own faces where the camera ray enters its box;
 a point whose depth lies far behind that entry (more than `max_point_recess`, 0.30 m) is in an opening of
 the box: on what stands in it as likely as on the object. Its answer point is withheld (counted as
-`answer_point_recessed`); verify recomputes the recess at the answer pixel it is given.
+`answer_point_recessed`); verify recomputes the recess at the answer pixel by its own code (qa/verify_recess.py).
 
 Measured on the shared frames (ScanNet scene0000_00 00000/00011/00102, SUN RGB-D 000001/2): the cabinet of
 00102 (a 1.5 m box round a TV unit) has its pole 0.70 m behind its entry face, on the shelf above the TV;
@@ -15,8 +15,6 @@ instead was tried and rejected: the desk box of 00011 holds the office chair's b
 """
 
 from __future__ import annotations
-
-from typing import Any
 
 import numpy as np
 
@@ -79,16 +77,3 @@ def withhold_recessed(objects: list[ObjectInstance], cam: Camera, depth: np.ndar
             o.provenance["answer_point"] = WITHHELD
             n += 1
     return n
-
-
-def check_answer_point(frame: Any, oid: int, x: int, y: int) -> list[str]:
-    """verify: an answer pixel on a box-only scan object lies at most the frame's `max_point_recess` behind
-    the box's entry face (recomputed from the stored depth, box and mask)."""
-    limit = (frame.meta or {}).get("max_point_recess")
-    o = next((o for o in frame.objects if o.id == oid), None)
-    if limit is None or o is None or frame.depth is None or not box_only(o):
-        return []
-    r = recess(frame.camera, np.asarray(frame.depth, np.float64), o.box, o.mask.decode(), x, y)
-    if r is None or r <= float(limit):
-        return []
-    return [f"answer pixel {x},{y} lies {r:.2f} m behind the entry face of object {oid}'s box (> {limit})"]
