@@ -127,7 +127,10 @@ def test_trajectory_one_and_two_workers_write_the_same_bytes(random_models, shar
     a = _shards(recipe, inp, tmp_path / "w1", 5, workers=1)
     monkeypatch.setenv("REFSPATIAL_CACHE", str(tmp_path / "cache2"))
     _shards(recipe, inp, tmp_path / "w2", 5, workers=2)
-    assert a["qa_pairs"] >= 30
+    # random-weight detections are random boxes: since the truth rules of audit rounds 3-4 (clear margins,
+    # centre-agreeing distances, recognisability) fewer of their pairs pass (15 of 5 frames, was >= 30); the
+    # test needs real content to compare, not a yield
+    assert a["qa_pairs"] >= 10
     assert output_digest(tmp_path / "w1") == output_digest(tmp_path / "w2")
 
 
