@@ -70,10 +70,9 @@ def objects_in(v: Any, out: set[int]) -> set[int]:
     return out
 
 
-def metric_ok(t: Template, env: dict[str, Any], ctx: Context, qa: QAPair) -> bool:
-    """False when the pair asks a metric value or a size comparison of an object the graph marks `metric: false`."""
-    if METRIC_RELATIONS.isdisjoint(qa.relations):
-        return True
+def binds_flagged(t: Template, env: dict[str, Any], ctx: Context, attribute: str) -> bool:
+    """True when an object the instance binds or computes (slots and step values, sets included) has the node
+    attribute `attribute` set to False in either view (`metric`, `sized`)."""
     ids: set[int] = set()
     for k, v in env.items():
         if k in t.slots or any(st.name == k for st in t.steps):
@@ -81,11 +80,16 @@ def metric_ok(t: Template, env: dict[str, Any], ctx: Context, qa: QAPair) -> boo
     for ix in (ctx.idx, ctx.second):
         if ix is None:
             continue
-        for i in ids:
+        for i in sorted(ids):
             n = ix.nodes.get(i)
-            if n is not None and n.attributes.get("metric") is False:
-                return False
-    return True
+            if n is not None and n.attributes.get(attribute) is False:
+                return True
+    return False
+
+
+def metric_ok(t: Template, env: dict[str, Any], ctx: Context, qa: QAPair) -> bool:
+    """False when the pair asks a metric value or a size comparison of an object the graph marks `metric: false`."""
+    return METRIC_RELATIONS.isdisjoint(qa.relations) or not binds_flagged(t, env, ctx, "metric")
 
 
 def _agree(full: Any, alt: Any, faint: frozenset[int]) -> bool:

@@ -18,7 +18,7 @@ from typing import Any
 
 from refspatial_gen.core.model import QAPair
 from refspatial_gen.graph.relations import REGISTRY
-from refspatial_gen.qa.faint import objects_in
+from refspatial_gen.qa.faint import binds_flagged
 from refspatial_gen.qa.program import Template
 from refspatial_gen.qa.values import Context
 
@@ -44,15 +44,4 @@ def withhold_cut(t: Template, env: dict[str, Any], ctx: Context, qa: QAPair) -> 
                 return SIZE_CUT
     if SIZE_RELATIONS.isdisjoint(qa.relations):
         return None
-    ids: set[int] = set()
-    for k, v in env.items():
-        if k in t.slots or any(st.name == k for st in t.steps):
-            objects_in(v, ids)
-    for ix in (ctx.idx, ctx.second):
-        if ix is None:
-            continue
-        for i in sorted(ids):
-            n = ix.nodes.get(i)
-            if n is not None and n.attributes.get("sized") is False:
-                return SIZE_CUT
-    return None
+    return SIZE_CUT if binds_flagged(t, env, ctx, "sized") else None
