@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from refspatial_gen.core.model import Frame, QAPair
+from refspatial_gen.qa.verify_truth import program_phrases
 from refspatial_gen.truth.contact import OFF_GROUND
 
 _POSITION = {"front", "behind", "above_world", "below_world", "close", "far", "depth", "distance", "touching"}
@@ -110,21 +111,7 @@ def _phrase_problems(
     qa: QAPair, frame: Frame, cat: dict[int, str], bad: dict[int, str], estimated: bool, partial: set[str]
 ) -> list[str]:
     out = []
-    found: list[tuple[str, int]] = []
-
-    def walk(x: Any) -> None:
-        if isinstance(x, dict):
-            if isinstance(x.get("phrase"), str) and isinstance(x.get("object"), int):
-                found.append((x["phrase"], x["object"]))
-            for v in x.values():
-                walk(v)
-        elif isinstance(x, list):
-            for v in x:
-                walk(v)
-
-    for st in qa.program:
-        walk(st.get("args") or {})
-    for phrase, oid in sorted(set(found)):
+    for phrase, oid in program_phrases(qa):
         c = cat.get(oid)
         words = phrase.split()
         if c in partial:

@@ -154,7 +154,8 @@ def _cut(frame: Frame, o: Any, floor: dict[str, Any]) -> str | None:
     return None
 
 
-def _phrases(qa: QAPair) -> list[tuple[str, int]]:
+def program_phrases(qa: QAPair) -> list[tuple[str, int]]:
+    """Every (referring phrase, object id) the program's step arguments hold, sorted, once each."""
     out = []
 
     def walk(x: Any) -> None:
@@ -254,7 +255,7 @@ def _phrase_changes(qa: QAPair, frame: Frame, low: set[int]) -> list[str]:
 
     seen = replace(frame, objects=[o for o in frame.objects if o.id not in low])
     out = []
-    for phrase, oid in _phrases(qa):
+    for phrase, oid in program_phrases(qa):
         full = resolve_phrase(phrase, frame)
         if list(full) != [oid]:
             continue  # the graph-based phrase check (verify.py) judges uniqueness
