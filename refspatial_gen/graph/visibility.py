@@ -37,6 +37,8 @@ pixel lengths are for a 640x480 image and scale with sqrt(width * height / (640 
   min_point_clearance_px     free-space answer points keep this far from every object's mask and from the
                              image border (default 20 px; graph/freespace.py)
   size_tolerance             widen every category size range by this fraction (default 0.0)
+  min_contrast_delta_e, dark_lightness, min_dark_px, min_dark_detail, dark_silhouette_delta_e
+                             the contrast floor (graph/contrast.py: can a person make the object out)
 """
 
 from __future__ import annotations
@@ -47,6 +49,7 @@ from typing import Any
 import numpy as np
 
 from refspatial_gen.core.errors import RecipeError
+from refspatial_gen.graph.contrast import CONTRAST_DEFAULTS, CONTRAST_DOCS, contrast_reasons
 from refspatial_gen.schema import Field, check_section
 
 DEFAULTS: dict[str, float] = {
@@ -61,6 +64,7 @@ DEFAULTS: dict[str, float] = {
     "min_front_height_ratio": 0.4,
     "min_point_clearance_px": 20.0,
     "size_tolerance": 0.0,
+    **CONTRAST_DEFAULTS,
 }
 _DOCS = {
     "min_visible_px": (int, 1_000_000, "visible mask pixels every referent, option and mark needs"),
@@ -86,6 +90,7 @@ _DOCS = {
         "free-space point distance (px at 640x480) from every mask and the border",
     ),
     "size_tolerance": (float, 10.0, "widen every category size range by this fraction before a metric question"),
+    **CONTRAST_DOCS,
 }
 TRUTH_FIELDS: dict[str, Field] = {
     k: Field(t, default=DEFAULTS[k], min=0.0 if t is float else 0, max=mx, doc=doc) for k, (t, mx, doc) in _DOCS.items()
@@ -117,6 +122,11 @@ class Floor:
     min_point_clearance_px: float = DEFAULTS["min_point_clearance_px"]
     min_photo_area_fraction: float = DEFAULTS["min_photo_area_fraction"]
     min_front_height_ratio: float = DEFAULTS["min_front_height_ratio"]
+    min_contrast_delta_e: float = DEFAULTS["min_contrast_delta_e"]
+    dark_lightness: float = DEFAULTS["dark_lightness"]
+    min_dark_px: float = DEFAULTS["min_dark_px"]
+    min_dark_detail: float = DEFAULTS["min_dark_detail"]
+    dark_silhouette_delta_e: float = DEFAULTS["dark_silhouette_delta_e"]
 
     def to_json(self) -> dict[str, float]:
         """Stored as graph.meta["truth_floor"]: verify (qa/verify_truth.py) re-checks against it."""
@@ -317,7 +327,7 @@ def apply_floor(geom: Any, floor: Floor) -> None:
     cam = geom.frame.camera
     masks = [o.mask.decode() if o.mask is not None and o.mask.area else None for o in geom.frame.objects]
     geom.in_view = in_view_fractions(cam, [o.box for o in geom.frame.objects])
-    geom.floor_why = floor_reasons(geom, floor, masks)
+    geom.floor_why = contrast_reasons(geom, floor, masks, floor_reasons(geom, floor, masks))
     geom.metric_why = metric_reasons(geom, floor)
     geom.cut_why = cut_reasons(geom, floor, masks)
     geom.front_why = front_reasons(geom, floor, geom.cut_why)

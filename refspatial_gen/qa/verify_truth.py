@@ -11,8 +11,9 @@ marks, key steps):
     (truth/sizes.py) and the frame's metric scale;
   - recognisability (graph/visibility.py): a visible mask that is no sliver (largest inscribed disc, by an exact
     Euclidean distance transform, against the recorded thickness floor); no size question about an object whose
-    mask reaches the border or whose box is not whole in view; a front (Orientation key steps, stored fronts of
-    named objects) only on uncut objects seen at least `min_front_visible_fraction`;
+    mask reaches the border or whose box is not whole in view; contrast with its surroundings, and a dark
+    object's size and detail (qa/verify_contrast.py, its own CIELAB and ring); a front (Orientation key
+    steps, stored fronts of named objects) only on uncut objects seen at least `min_front_visible_fraction`;
   - free-space answer points: `min_point_clearance_px` from the image border and every object's mask but the
     surface's own, and `free_clearance` from every obstacle footprint on the plane (its own ray and footprints).
 """
@@ -25,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from refspatial_gen.core.model import Frame, QAPair, SceneGraph
+from refspatial_gen.qa.verify_contrast import low_contrast
 from refspatial_gen.truth.sizes import check_size
 
 METRIC_RELATIONS = ("distance", "depth", "tall", "short", "big", "small", "wide", "thin")
@@ -99,7 +101,7 @@ def below_floor(frame: Frame, floor: dict[str, Any]) -> dict[int, str]:
             out[o.id] = f"visible fraction {o.visible_fraction:.3f} < {floor['min_visible_fraction']}"
         elif _box_in_view(frame, o.box) < float(floor.get("min_in_view_fraction", 0.0)) - IN_VIEW_TOL:
             out[o.id] = f"{_box_in_view(frame, o.box):.2f} of its box in view < {floor['min_in_view_fraction']}"
-        elif (why := _sliver(frame, o, floor)) is not None:
+        elif (why := _sliver(frame, o, floor) or low_contrast(frame, o, floor)) is not None:
             out[o.id] = why
     return out
 
