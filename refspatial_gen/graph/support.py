@@ -56,6 +56,7 @@ def find_supports(geom: SceneGeom) -> list[Support | None]:
     area = geom.footprint_area
     out: list[Support | None] = []
     refused = 0
+    copies = np.array([o.provenance.get("distractor_only") == "lookalike" for o in geom.frame.objects], bool)
     shares = np.zeros((geom.n, len(surfs)))
     if len(surfs) and geom.n:  # share of each object's footprint grid over each surface, in one call
         grids = np.stack([_grid_in(fp) for fp in geom.footprints])  # (n, 36, 2)
@@ -72,6 +73,7 @@ def find_supports(geom: SceneGeom) -> list[Support | None]:
                     cands.append((abs(gap), 1, Support("surface", s.id, float(gap), float(share[k]))))
         near = (np.abs(bottom - geom.hi[:, 2]) <= th.support_gap) & (geom.hi[:, 2] < geom.hi[i, 2])
         near[i] = False
+        near &= ~copies  # a look-alike stand-in is a second reading of an object: that object is the support
         for j in np.flatnonzero(near):  # tops within the gap, below i's top
             gap = bottom - geom.hi[j, 2]
             # share of the smaller footprint that the two have in common

@@ -39,6 +39,8 @@ pixel lengths are for a 640x480 image and scale with sqrt(width * height / (640 
   size_tolerance             widen every category size range by this fraction (default 0.0)
   min_contrast_delta_e, dark_lightness, min_dark_px, min_dark_detail, dark_silhouette_delta_e
                              the contrast floor (graph/contrast.py: can a person make the object out)
+  lookalike_stand_ins        1 (default): every object gets faint stand-ins of the categories a person could take
+                             it for (truth/lookalikes.py, run/pipeline.py); 0: off
 """
 
 from __future__ import annotations
@@ -65,6 +67,7 @@ DEFAULTS: dict[str, float] = {
     "min_point_clearance_px": 20.0,
     "size_tolerance": 0.0,
     **CONTRAST_DEFAULTS,
+    "lookalike_stand_ins": 1,
 }
 _DOCS = {
     "min_visible_px": (int, 1_000_000, "visible mask pixels every referent, option and mark needs"),
@@ -91,6 +94,7 @@ _DOCS = {
     ),
     "size_tolerance": (float, 10.0, "widen every category size range by this fraction before a metric question"),
     **CONTRAST_DOCS,
+    "lookalike_stand_ins": (int, 1, "1: faint stand-ins of look-alike categories count (truth/lookalikes.py)"),
 }
 TRUTH_FIELDS: dict[str, Field] = {
     k: Field(t, default=DEFAULTS[k], min=0.0 if t is float else 0, max=mx, doc=doc) for k, (t, mx, doc) in _DOCS.items()
@@ -127,11 +131,13 @@ class Floor:
     min_dark_px: float = DEFAULTS["min_dark_px"]
     min_dark_detail: float = DEFAULTS["min_dark_detail"]
     dark_silhouette_delta_e: float = DEFAULTS["dark_silhouette_delta_e"]
+    lookalike_stand_ins: int = int(DEFAULTS["lookalike_stand_ins"])
 
     def to_json(self) -> dict[str, float]:
         """Stored as graph.meta["truth_floor"]: verify (qa/verify_truth.py) re-checks against it."""
         out = {k: round(float(getattr(self, k)), 6) for k in sorted(TRUTH_FIELDS)}
         out["min_visible_px"] = int(self.min_visible_px)
+        out["lookalike_stand_ins"] = int(self.lookalike_stand_ins)
         return out
 
 
@@ -142,8 +148,9 @@ def floor_of(config: dict[str, Any] | None) -> Floor:
     if unknown:
         raise ValueError(f"unknown graph.truth key(s) {sorted(unknown)}; known: {sorted(TRUTH_FIELDS)}")
     vals = {k: (raw[k] if raw.get(k) is not None else f.default) for k, f in TRUTH_FIELDS.items()}
-    floats = {k: float(v) for k, v in vals.items() if k != "min_visible_px"}
-    return Floor(int(vals["min_visible_px"]), **floats)
+    ints = ("min_visible_px", "lookalike_stand_ins")
+    floats = {k: float(v) for k, v in vals.items() if k not in ints}
+    return Floor(int(vals["min_visible_px"]), lookalike_stand_ins=int(vals["lookalike_stand_ins"]), **floats)
 
 
 def px_scale(width: int, height: int) -> float:

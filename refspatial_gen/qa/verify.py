@@ -19,6 +19,7 @@ import numpy as np
 from refspatial_gen.core.mask import denormalise_point
 from refspatial_gen.core.model import Frame, FreeSpaceRegion, QAPair, Sample, SceneGraph
 from refspatial_gen.qa.ops import OPS
+from refspatial_gen.qa.verify_lookalike import check_lookalikes
 from refspatial_gen.qa.verify_nesting import check_nesting
 from refspatial_gen.qa.verify_nesting import walk as _walk
 from refspatial_gen.qa.verify_photo import check_photo
@@ -123,6 +124,7 @@ def verify_qa(
                 problems.append(f"step {k + 1} ({st['op']}) stored {sorted(stored)} but re-evaluates to {sorted(got)}")
         problems += _check_answer(qa, final, w, frame, graph)
     problems += _check_marks(qa, w, order if order is not None else list(frames))
+    problems += check_lookalikes(qa, frames, graphs)  # look-alike stand-ins stored (truth/lookalikes.py)
     problems += check_truth(qa, frames, graphs)  # visibility floor, phrases without faint objects, metric trust
     problems += check_photo(qa, frame)  # photo rules: unseen feet, same-category sizes, incomplete categories
     # --- trace and key steps

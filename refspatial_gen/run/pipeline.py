@@ -8,9 +8,11 @@ from dataclasses import dataclass, field
 from refspatial_gen.core.errors import DropUnit, InputError
 from refspatial_gen.core.model import Sample
 from refspatial_gen.core.serialize import as_stored
+from refspatial_gen.graph.visibility import floor_of
 from refspatial_gen.recipe import Recipe
 from refspatial_gen.run.plan import Unit, unit_rng
 from refspatial_gen.sources import get_source
+from refspatial_gen.truth.lookalikes import add_lookalike_stand_ins
 
 
 @dataclass
@@ -44,6 +46,8 @@ def make_sample(recipe: Recipe, unit: Unit, timer: StageTimer, out_dir: str | No
             f.validate()
         except ValueError as e:
             raise DropUnit("invalid_frame", f"{f.frame_id}: {e}") from e
+    if floor_of(recipe.graph).lookalike_stand_ins:  # look-alikes count where a category is named
+        frames = [add_lookalike_stand_ins(f) for f in frames]
     frames = [as_stored(f) for f in frames]  # graphs and QA on the numbers the shard keeps (verify reads them)
     t = timer.add("load", t)
     graphs = [build_graph(f, recipe.graph) for f in frames]
