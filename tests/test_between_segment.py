@@ -66,10 +66,12 @@ def three(a_xy):
     "a_xy, expected",
     [
         ((0.0, 0.0), True),  # the middle of the segment
-        ((0.2, 0.0), True),  # t = 0.83: inside 0.15..0.85
+        ((0.17, 0.0), True),  # t = 0.78: inside 0.15..0.85, 6 cm (10% of |BC|) clear of the green box
+        ((0.2, 0.0), None),  # t = 0.83 but 3 cm (5% of |BC|) from the green box: beside an anchor
         ((0.25, 0.0), None),  # t = 0.92: the band at the end
         ((0.33, 0.0), False),  # beyond the anchor
-        ((0.0, 0.2), None),  # off the line by a third of the gap: the band beside it
+        ((0.0, 0.15), None),  # off the line by a quarter of the gap: 27 deg seen from each anchor, the band
+        ((0.0, 0.2), False),  # off by a third: 34 deg seen from each anchor, beyond the angular limit + band
         ((0.0, 0.3), False),  # off by half the gap
     ],
 )

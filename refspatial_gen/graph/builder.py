@@ -170,6 +170,9 @@ def graph_from_geometry(geom: SceneGeom, free_space: bool = True, floor: Floor |
         "image_size": [geom.W, geom.H],
         "truth_floor": geom.cache["floor"].to_json(),
     }
+    from refspatial_gen.graph.relations.between_angle import count_between
+
+    count_between(geom)  # between is derived at question time; its new withholdings are counted here
     truth = dict(geom.cache["truth"])
     withheld = {"margin": "colour_unnamed_margin", "person_or_animal": "colour_withheld_person_or_animal"}
     for how in geom.colour_how:  # objects the colour namer left unnamed (run/stats.py truth_counts)

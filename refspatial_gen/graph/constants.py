@@ -74,6 +74,13 @@ class Thresholds:
     # the corridor narrows linearly within this share of |BC| of either anchor (a lens, not a rectangle): a can
     # just past one anchor and off to its side is not "between" (audit round 3)
     between_taper: float = 0.30
+    # seen from each anchor, the direction to A within this angle (rad, 22 deg) of the direction to the other
+    # anchor, in the ground plane and the image; beyond it by the band (10 deg) A is clearly not between; and
+    # A's box at least this share of |BC| from both anchors' boxes (graph/relations/between_angle.py, audit
+    # round 4: a box 40 deg off the line at 20% of the way, a bottle just beside one anchor)
+    between_max_angle: float = 0.384
+    between_angle_band: float = 0.175
+    between_anchor_gap: float = 0.08
     # near/far (left/right) edge of a surface only when the surface's extent along the edge normal is at least
     # this many edge bands: on a shallow shelf every object is near both edges (audit round 3)
     edge_depth_factor: float = 3.0

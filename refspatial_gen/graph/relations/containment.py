@@ -14,6 +14,7 @@ import numpy as np
 from refspatial_gen.core.geometry import inside_fraction
 from refspatial_gen.core.model import RelationFact
 from refspatial_gen.graph.relations.base import Cell, Relation, register
+from refspatial_gen.graph.relations.between_angle import angle_masks, near_anchor
 from refspatial_gen.graph.relations.common import (
     FALSE,
     TRUE,
@@ -79,15 +80,16 @@ def segment_position(
     return t, yes, no
 
 
-def between_arrays(
+def between_parts(
     xy: np.ndarray, uv: np.ndarray, ids: np.ndarray, categories: list[str], dist: np.ndarray, th: Any
-) -> Any:
-    """Every anchor pair at once: (B, C, cand, code, t) with anchor positions B[p], C[p] (ids[B] < ids[C]),
-    cand[p, a] = between(a, B[p], C[p]) is not False, code[p, a] its TRUE/UNDECIDED code and t[p, a] the
-    position along the ground-plane segment. A is between when it lies on the segment joining the anchors
-    both on the ground plane (`xy`, centres in m) and in the image (`uv`, mask centroids in pixels): the
-    audit found ground-plane corridors alone answering with objects a person sees beside both anchors.
-    None when no pair spans a region."""
+) -> dict[str, Any] | None:
+    """Every anchor pair at once: {B, C, cand, code, t, between_angle, between_anchor_gap} with anchor
+    positions B[p], C[p] (ids[B] < ids[C]), cand[p, a] = between(a, B[p], C[p]) is not False, code[p, a] its
+    TRUE/UNDECIDED code, t[p, a] the position along the ground-plane segment, and the two reason masks of
+    between_angle.count_between. A is between when it lies on the segment joining the anchors both on the
+    ground plane (`xy`, centres in m) and in the image (`uv`, mask centroids in pixels), within the angular
+    limit seen from each anchor in both (graph/relations/between_angle.py): the audit found ground-plane
+    corridors alone answering with objects a person sees beside both anchors. None when no pair spans a region."""
     ids = np.asarray(ids)
     n = len(ids)
     if n < 3:
@@ -96,30 +98,51 @@ def between_arrays(
     uv = np.asarray(uv, float).reshape(n, 2)
     B, C = np.nonzero(ids[:, None] < ids[None, :])  # row-major: the order of nested (b, c) loops
     seg = xy[C] - xy[B]
-    keep = np.sqrt(seg[:, 0] * seg[:, 0] + seg[:, 1] * seg[:, 1]) >= MIN_BETWEEN_SPAN
-    B, C = B[keep], C[keep]
+    span = np.sqrt(seg[:, 0] * seg[:, 0] + seg[:, 1] * seg[:, 1])
+    keep = span >= MIN_BETWEEN_SPAN
+    B, C, span = B[keep], C[keep], span[keep]
     if not len(B):
         return None
     t, yes_w, no_w = segment_position(xy, B, C, th, MIN_BETWEEN_SPAN)
     _ti, yes_i, no_i = segment_position(uv, B, C, th, MIN_BETWEEN_PX)
-    yes = yes_w & yes_i
+    in_w, out_w = angle_masks(xy, B, C, th)
+    in_i, out_i = angle_masks(uv, B, C, th)
+    seen = (np.hypot(*(uv[C] - uv[B]).T) >= MIN_BETWEEN_PX)[:, None]  # the image decides nothing otherwise
+    corridor = yes_w & yes_i
+    angled = in_w & in_i & seen
+    no_w, no_i = no_w | out_w, no_i | (out_i & seen)
+    yes = corridor & angled
     cand = ~(no_w | no_i)
     rival = ~(no_w & no_i)  # a same-category object is out of the running only when clearly off in both planes
     rows = np.arange(len(B))
-    cand[rows, B] = False
-    cand[rows, C] = False
-    dist = np.asarray(dist, float)
-    clear = (dist[:, B].T > 1e-6) & (dist[:, C].T > 1e-6)
+    for m in (cand, rival, corridor, yes):
+        m[rows, B] = False
+        m[rows, C] = False
+    close = near_anchor(np.asarray(dist, float), B, C, span, th)
     # a second object of A's category also (possibly) between B and C makes A ambiguous
     labels: dict[str, int] = {}
     cat = np.array([labels.setdefault(str(c), len(labels)) for c in categories])
     same = cat[:, None] == cat[None, :]
     np.fill_diagonal(same, False)
-    rival[rows, B] = False
-    rival[rows, C] = False
     ambiguous = (rival.astype(np.int64) @ same.astype(np.int64)) > 0
-    code = np.where(yes & clear & ~ambiguous, TRUE, UNDECIDED)
-    return B, C, cand, code, t
+    code = np.where(yes & ~close & ~ambiguous, TRUE, UNDECIDED)
+    return {
+        "B": B,
+        "C": C,
+        "cand": cand,
+        "code": code,
+        "t": t,
+        "between_angle": corridor & ~angled,
+        "between_anchor_gap": yes & close,
+    }
+
+
+def between_arrays(
+    xy: np.ndarray, uv: np.ndarray, ids: np.ndarray, categories: list[str], dist: np.ndarray, th: Any
+) -> Any:
+    """between_parts as a tuple (B, C, cand, code, t); None when no pair spans a region."""
+    p = between_parts(xy, uv, ids, categories, dist, th)
+    return None if p is None else (p["B"], p["C"], p["cand"], p["code"], p["t"])
 
 
 def between_table(
@@ -295,9 +318,11 @@ register(
         "world",
         3,
         "position of A's centre along the B-C segment (0 at B, 1 at C)",
-        "between_t_margin, between_corridor, between_t_band, between_corridor_band",
+        "between_t_margin, between_corridor, between_t_band, between_corridor_band, between_max_angle, "
+        "between_angle_band, between_anchor_gap",
         "A lies on the segment joining B and C on the ground plane and in the image (well inside its ends, near "
-        "its line), and no other object of A's category may",
+        "its line, within 22 degrees of it seen from each anchor, clear of both anchors), and no other object of "
+        "A's category may",
         storage="derived",
         needs=G,
         evaluate=_between_eval,
