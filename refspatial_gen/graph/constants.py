@@ -97,6 +97,12 @@ class Thresholds:
     # close/far to an anchor: the larger surface distance must exceed the smaller by this fraction of the larger,
     # on top of distance_margin
     distance_margin_rel: float = 0.20
+    # above/below (world) beside, not over (graph/relations/vertical_clear.py): with footprints overlapping by
+    # less than this share (of either footprint), A's bottom must clear B's top by max(clear_margin, clear_share
+    # x B's height): a mouse on a thin book beside a tray is not "above" it (pre-audit round 5)
+    vertical_over_share: float = 0.15
+    vertical_clear_margin: float = 0.10
+    vertical_clear_share: float = 0.5
 
     def to_json(self) -> dict[str, float]:
         return {k: round(float(v), 6) for k, v in sorted(asdict(self).items())}

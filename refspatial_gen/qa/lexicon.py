@@ -47,18 +47,15 @@ RELATION_FORMS: dict[str, dict[str, str]] = {
         "adj": "at the back",
     },
     "above_world": {
-        "prep": (
-            "{physically above|physically higher than|above, in the real world,"
-            "|above, from the real-world perspective,}"
-        ),
+        # "higher", not "above": "physically above the tray" reads as over it, and beside it a clearly higher
+        # object is above it too (graph/relations/vertical_clear.py; pre-audit round 5)
+        "prep": "{physically higher than|higher up, in the real world, than|physically higher up than}",
         "cmp": "higher up in the real world",
         "sup": "physically highest",
         "adj": "higher up",
     },
     "below_world": {
-        "prep": (
-            "{physically below|physically lower than|below, in the real world,|below, from the real-world perspective,}"
-        ),
+        "prep": "{physically lower than|lower down, in the real world, than|physically lower down than}",
         "cmp": "lower down in the real world",
         "sup": "physically lowest",
         "adj": "lower down",

@@ -70,10 +70,20 @@ class World:
             if h is None:
                 raise Undecided(f"between{tuple(args)} is inside its margin")
             return h
+        if rel in ("above_world", "below_world"):  # the verifier's own rule (qa/verify_vertical.py)
+            return self._vertical(rel, int(args[0]), int(args[1]))
         f = evaluate(self.geom, rel, *args)
         if f.holds is None:
             raise Undecided(f"{rel}{tuple(args)} is inside its margin (value {f.value:.4f}, margin {f.margin:.4f})")
         return bool(f.holds)
+
+    def _vertical(self, rel: str, a: int, b: int) -> bool:
+        from refspatial_gen.qa.verify_vertical import above_world_holds
+
+        h = above_world_holds(self, a, b) if rel == "above_world" else above_world_holds(self, b, a)
+        if h is None:
+            raise Undecided(f"{rel}{(a, b)} is neither over nor clearly higher (qa/verify_vertical.py)")
+        return h
 
     def mask(self, oid: int) -> np.ndarray:
         m = self._masks.get(oid)

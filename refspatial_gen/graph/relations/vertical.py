@@ -1,7 +1,8 @@
 """Gravity-frame vertical relations: above/below (world), on / supported by, under.
 
 Why: "above from the real-world perspective" needs gravity, not image rows. A resting stack (A's bottom
-at B's top) counts as above whatever the centre heights; otherwise centres must differ by the margin.
+at B's top) counts as above whatever the centre heights; otherwise centres must differ by the margin. Beside
+B rather than over it, A must also clear B's top by a visible gap (graph/relations/vertical_clear.py).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from refspatial_gen.graph.relations.common import (
     pos,
 )
 from refspatial_gen.graph.relations.lookup import false_absent, pair_cell, pair_table, sparse_cell, sparse_table
+from refspatial_gen.graph.relations.vertical_clear import apply_clear_margin
 from refspatial_gen.graph.scene import SceneGeom
 from refspatial_gen.graph.support import get_supports
 
@@ -58,6 +60,7 @@ def _above(geom: SceneGeom) -> Matrices:
         count(g, "vertical_same_level", same & (codes != UNDECIDED))
         codes[same] = UNDECIDED
         np.fill_diagonal(codes, UNDECIDED)
+        apply_clear_margin(g, codes)  # beside, not over: a clear gap (vertical_beside_margin)
         return v, codes, g.th.vertical_margin
 
     return cached(geom, "vert:above", f)
@@ -157,10 +160,10 @@ register(
         "world",
         2,
         "centre height of A minus B's (m)",
-        "vertical_margin, stack_tolerance",
-        "A's bottom is at or above B's top, or A's centre is higher by the margin and their heights do not "
-        "overlap by more than the stack tolerance (gravity frame); never when both bottoms are within the "
-        "stack tolerance of each other (resting on one surface)",
+        "vertical_margin, stack_tolerance, vertical_over_share, vertical_clear_margin, vertical_clear_share",
+        "A is over B (footprints overlap by vertical_over_share) with its bottom at or above B's top, or beside "
+        "B with its bottom above B's top by max(vertical_clear_margin, vertical_clear_share x B's height) "
+        "(gravity frame); never when both bottoms are within the stack tolerance of each other (one surface)",
         needs=G,
         qa="ordered",
         evaluate=pair_evaluator(_above, "above_world"),
