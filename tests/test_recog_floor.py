@@ -40,6 +40,20 @@ def _scene():
 
 
 def _with(frame, oid, **changes):
+    """The frame with object `oid` changed. A new mask is also painted into the image (the object's colour on
+    its new pixels, the table's on the pixels it gave up), so the picture shows what the mask says and the
+    contrast floor (graph/contrast.py) sees the object these tests describe."""
+    if "mask" in changes and frame.rgb is not None:
+        old = next(o for o in frame.objects if o.id == oid).mask.decode().astype(bool)
+        new = changes["mask"].decode().astype(bool)
+        anyone = np.zeros_like(old)
+        for o in frame.objects:
+            anyone |= o.mask.decode().astype(bool)
+        rgb = np.array(frame.rgb)
+        colour, table = np.median(rgb[old], axis=0), np.median(rgb[~anyone], axis=0)
+        rgb[old & ~new] = table.astype(rgb.dtype)
+        rgb[new] = colour.astype(rgb.dtype)
+        frame = dataclasses.replace(frame, rgb=rgb)
     return dataclasses.replace(
         frame, objects=[dataclasses.replace(o, **changes) if o.id == oid else o for o in frame.objects]
     )

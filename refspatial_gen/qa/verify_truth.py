@@ -88,6 +88,16 @@ def _pixels(frame: Frame) -> int:
     return int(frame.camera.width * frame.camera.height)
 
 
+def _below_floor_once(frame: Frame, floor: dict[str, Any]) -> dict[int, str]:
+    """below_floor, computed once per stored frame and floor (verify checks every pair of a frame against the
+    same objects; the contrast re-check reads the image, too slow to repeat per pair)."""
+    key = repr(sorted(floor.items()))
+    cache = frame.__dict__.setdefault("_verify_below_floor", {})
+    if key not in cache:
+        cache[key] = below_floor(frame, floor)
+    return dict(cache[key])
+
+
 def below_floor(frame: Frame, floor: dict[str, Any]) -> dict[int, str]:
     """Objects of the stored frame under the recorded floor, with why (recomputed from masks and boxes)."""
     out: dict[int, str] = {}
@@ -198,7 +208,7 @@ def check_truth(qa: QAPair, frames: dict[str, Frame], graphs: dict[str, SceneGra
         return []  # written before the floors existed
     objs = {o.id: o for o in frame.objects}
     named = {i for i in named_objects(qa) if i in objs}
-    low = below_floor(frame, floor)
+    low = _below_floor_once(frame, floor)
     for i in sorted(named & set(low)):
         out.append(f"names object {i} ({objs[i].category}) below the visibility floor: {low[i]}")
     if low:
