@@ -19,6 +19,7 @@ import numpy as np
 from refspatial_gen.core.mask import denormalise_point
 from refspatial_gen.core.model import Frame, FreeSpaceRegion, QAPair, Sample, SceneGraph
 from refspatial_gen.qa.ops import OPS
+from refspatial_gen.qa.verify_corners import check_corners
 from refspatial_gen.qa.verify_nesting import check_nesting
 from refspatial_gen.qa.verify_nesting import walk as _walk
 from refspatial_gen.qa.verify_photo import check_photo
@@ -125,6 +126,7 @@ def verify_qa(
     problems += _check_marks(qa, w, order if order is not None else list(frames))
     problems += check_truth(qa, frames, graphs)  # visibility floor, phrases without faint objects, metric trust
     problems += check_photo(qa, frame)  # photo rules: unseen feet, same-category sizes, incomplete categories
+    problems += check_corners(qa, frame, graph)  # corners/edges seen, at the top face's extent
     # --- trace and key steps
     problems += _check_trace(qa, w)
     return problems
