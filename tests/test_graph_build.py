@@ -110,7 +110,10 @@ def test_every_relation_is_decidable_on_typical_tabletop_scenes():
                 true[rel] += inst.holds is True
                 false[rel] += inst.holds is False
     for rel in SPEC_31:
-        assert true[rel] >= 3, f"{rel}: only {true[rel]} holding instances"
+        # the toy camera leaves most near table corners outside the picture: those are not named since audit
+        # round 4 (graph/surface_seen.py, corner_unseen), so corners hold less often than the other relations
+        need = 2 if rel == "corner" else 3
+        assert true[rel] >= need, f"{rel}: only {true[rel]} holding instances"
         if REGISTRY[rel].storage not in ("unary", "region") and rel not in ("distance", "angle"):
             assert false[rel] >= 3, f"{rel}: only {false[rel]} failing instances"
 

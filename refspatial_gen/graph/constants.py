@@ -103,6 +103,16 @@ class Thresholds:
     vertical_over_share: float = 0.15
     vertical_clear_margin: float = 0.10
     vertical_clear_share: float = 0.5
+    # corner and edge names of a surface only where a person sees them at the top face's real extent
+    # (graph/surface_seen.py, audit round 4): the share of a corner square / edge band the depth map shows
+    # (the plane, or an object standing there) must reach these ...
+    min_corner_seen: float = 0.5
+    min_edge_seen: float = 0.5
+    # ... and no named edge where the plane goes on past it: the depth map shows the plane on more than this
+    # share of the seen samples in a band `extent_band` (m) wide just outside the edge
+    max_extent_continuation: float = 0.5
+    extent_band: float = 0.10
+    extent_height_tolerance: float = 0.012  # m, what the depth map shows there lies this close to the plane
 
     def to_json(self) -> dict[str, float]:
         return {k: round(float(v), 6) for k, v in sorted(asdict(self).items())}

@@ -20,6 +20,7 @@ from refspatial_gen.core.mask import denormalise_point
 from refspatial_gen.core.model import Frame, FreeSpaceRegion, QAPair, Sample, SceneGraph
 from refspatial_gen.qa.ops import OPS
 from refspatial_gen.qa.verify_lookalike import check_lookalikes
+from refspatial_gen.qa.verify_corners import check_corners
 from refspatial_gen.qa.verify_nesting import check_nesting
 from refspatial_gen.qa.verify_nesting import walk as _walk
 from refspatial_gen.qa.verify_photo import check_photo
@@ -127,6 +128,7 @@ def verify_qa(
     problems += check_lookalikes(qa, frames, graphs)  # look-alike stand-ins stored (truth/lookalikes.py)
     problems += check_truth(qa, frames, graphs)  # visibility floor, phrases without faint objects, metric trust
     problems += check_photo(qa, frame)  # photo rules: unseen feet, same-category sizes, incomplete categories
+    problems += check_corners(qa, frame, graph)  # corners/edges seen, at the top face's extent
     # --- trace and key steps
     problems += _check_trace(qa, w)
     return problems

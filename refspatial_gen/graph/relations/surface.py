@@ -17,6 +17,7 @@ from refspatial_gen.graph.relations.base import SURFACE_SOURCES, Cell, Relation,
 from refspatial_gen.graph.relations.common import FALSE, TRUE, UNDECIDED, cached, pos
 from refspatial_gen.graph.scene import SceneGeom, roll_next
 from refspatial_gen.graph.support import get_supports, surface_polygon
+from refspatial_gen.graph.surface_seen import filter_seen
 
 if TYPE_CHECKING:
     from refspatial_gen.graph.tables import RelationTables
@@ -64,6 +65,7 @@ def surface_labels(geom: SceneGeom) -> dict[str, dict[str, Any]]:
                         truth["edge_shallow_surface"] = truth.get("edge_shallow_surface", 0) + 1
                         continue
                     entry["edges"][label] = (a, b)
+            filter_seen(g, entry)  # names only where the camera sees them, at the top face's extent
         return out
 
     return cached(geom, "surface:labels", f)

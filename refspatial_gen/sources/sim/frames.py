@@ -107,7 +107,7 @@ def make_frames(
         visible = {ob.id for ob in objects}
         surfaces = []
         for s in desc.surfaces:
-            (x, y), (hx, hy) = s.center, s.half
+            (x, y), (hx, hy) = (s.face[:2], s.face[2:]) if s.face is not None else (s.center, s.half)
             t = max(s.thickness, 0.01)
             surfaces.append(
                 SupportSurface(

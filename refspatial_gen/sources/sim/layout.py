@@ -47,6 +47,9 @@ class Surface:
     thickness: float
     max_height: float = 10.0  # free height above the top (shelves)
     fps: list = field(default_factory=list)  # footprints placed on it
+    # (cx, cy, hx, hy) of the whole top face when things are placed on a smaller area of it (a bed's mattress:
+    # objects keep off the pillow end); the frame's support surface (corners, edges, free space) is the face
+    face: tuple[float, float, float, float] | None = None
 
     def rect(self, margin: float = 0.0) -> Polygon:
         (x, y), (hx, hy) = self.center, self.half
