@@ -90,6 +90,9 @@ class Thresholds:
     # close/far to an anchor: the larger surface distance must exceed the smaller by this fraction of the larger,
     # on top of distance_margin
     distance_margin_rel: float = 0.20
+    # inside (graph/relations/receptacle.py): A fits in B only when A's largest horizontal extent is at most
+    # this many times B's (a pencil may stick out of a cup a little; a table never fits in a bin)
+    inside_max_overhang: float = 1.2
 
     def to_json(self) -> dict[str, float]:
         return {k: round(float(v), 6) for k, v in sorted(asdict(self).items())}
