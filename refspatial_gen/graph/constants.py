@@ -113,6 +113,9 @@ class Thresholds:
     max_extent_continuation: float = 0.5
     extent_band: float = 0.10
     extent_height_tolerance: float = 0.012  # m, what the depth map shows there lies this close to the plane
+    # inside (graph/relations/receptacle.py): A fits in B only when A's largest horizontal extent is at most
+    # this many times B's (a pencil may stick out of a cup a little; a table never fits in a bin)
+    inside_max_overhang: float = 1.2
 
     def to_json(self) -> dict[str, float]:
         return {k: round(float(v), 6) for k, v in sorted(asdict(self).items())}

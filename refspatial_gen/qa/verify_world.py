@@ -72,6 +72,13 @@ class World:
             return h
         if rel in ("above_world", "below_world"):  # the verifier's own rule (qa/verify_vertical.py)
             return self._vertical(rel, int(args[0]), int(args[1]))
+        if rel in ("inside", "outside"):  # the verifier's own share and receptacle rule (qa/verify_inside.py)
+            from refspatial_gen.qa.verify_inside import inside_holds
+
+            h = inside_holds(self, int(args[0]), int(args[1]))
+            if h is None:
+                raise Undecided(f"{rel}{tuple(args)} is inside its margin or no receptacle holds it")
+            return h if rel == "inside" else not h
         f = evaluate(self.geom, rel, *args)
         if f.holds is None:
             raise Undecided(f"{rel}{tuple(args)} is inside its margin (value {f.value:.4f}, margin {f.margin:.4f})")

@@ -27,6 +27,7 @@ from refspatial_gen.graph.relations.common import (
     pos,
 )
 from refspatial_gen.graph.relations.lookup import false_absent, sparse_cell, sparse_table
+from refspatial_gen.graph.relations.receptacle import apply_receptacle_rule
 from refspatial_gen.graph.scene import SceneGeom
 
 if TYPE_CHECKING:
@@ -51,7 +52,8 @@ def _inside(geom: SceneGeom) -> Matrices:
         th = g.th
         codes = band_matrix(-frac, -(th.inside_fraction + th.inside_band), -(th.inside_fraction - th.inside_band))
         np.fill_diagonal(codes, UNDECIDED)
-        return frac, codes, th.inside_band
+        # B must be a receptacle A fits in, A over its floor (audit round 4: "the bin in the desk")
+        return frac, apply_receptacle_rule(g, codes), th.inside_band
 
     return cached(geom, "contain:inside", f)
 
