@@ -212,7 +212,9 @@ def test_rotation_vertical_is_view_relative():
 
 
 @pytest.mark.parametrize(
-    "a_xy, expected", [((0.0, 0.0), True), ((0.45, 0.0), False), ((0.0, 0.2), None), ((0.25, 0.0), None)]
+    "a_xy, expected",
+    # (0, 0.15): 27 degrees off seen from each anchor, the angular band; (0, 0.2): 34 degrees, clearly off
+    [((0.0, 0.0), True), ((0.45, 0.0), False), ((0.0, 0.15), None), ((0.0, 0.2), False), ((0.25, 0.0), None)],
 )
 def test_between(a_xy, expected):
     fr, g = scene(

@@ -60,7 +60,12 @@ def count_between(geom: Any) -> None:
     from refspatial_gen.graph.relations.containment import between_parts
 
     parts = between_parts(
-        geom.centers[:, :2], geom.img_centroid * (geom.W, geom.H), geom.ids, geom.categories, geom.surface_distance, geom.th
+        geom.centers[:, :2],
+        geom.img_centroid * (geom.W, geom.H),
+        geom.ids,
+        geom.categories,
+        geom.surface_distance,
+        geom.th,
     )
     if parts is None:
         return
