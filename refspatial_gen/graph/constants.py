@@ -91,6 +91,9 @@ class Thresholds:
     # ... and by this share of the narrower mask's width (left/right) or the shorter mask's height (above/below):
     # a tray lying in front of two others and overlapping both is neither left nor right of them
     image_extent_share: float = 0.5
+    # ... and neither mask may reach this fraction of the image side past BOTH ends of the other (a train spanning
+    # the photo behind a cyclist; a night stand at the end of the bed stays decided: graph/relations/span.py)
+    image_span_margin: float = 0.05
     # front/behind (nearest-face depths): the farther must exceed the nearer by this fraction of the farther,
     # on top of depth_margin
     depth_margin_rel: float = 0.10

@@ -80,6 +80,12 @@ class World:
                 raise Undecided(f"{rel}{tuple(args)} is inside its margin or no receptacle holds it")
             return h if rel == "inside" else not h
         f = evaluate(self.geom, rel, *args)
+        if f.holds is not None and len(args) == 2:  # the verifier's own span check (qa/verify_span.py)
+            from refspatial_gen.qa.verify_span import spanned
+
+            why = spanned(self, rel, int(args[0]), int(args[1]))
+            if why:
+                raise Undecided(f"{rel}{tuple(args)}: {why}")
         if f.holds is None:
             raise Undecided(f"{rel}{tuple(args)} is inside its margin (value {f.value:.4f}, margin {f.margin:.4f})")
         return bool(f.holds)

@@ -27,6 +27,7 @@ from refspatial_gen.graph.relations.common import (
     pair_facts,
 )
 from refspatial_gen.graph.relations.lookup import pair_cell, pair_table
+from refspatial_gen.graph.relations.span import span_contains
 from refspatial_gen.graph.scene import SceneGeom
 
 OVERLAP_SHARE = 0.5  # extents sharing more than this share of the shorter one along the axis: undecided
@@ -62,7 +63,8 @@ def _lateral(geom: SceneGeom) -> Matrices:
     """Camera-frame centres decide with the metric margin; the image must agree and show the order clearly:
     centroids apart by image_extent_share of the narrower mask and, where the masks' columns overlap, by
     image_clear_margin of the width (a tray lying in front of two others and overlapping both is neither left
-    nor right of them; a box 2% of the width left of the box behind it is not "left of" it: audit round 2)."""
+    nor right of them; a box 2% of the width left of the box behind it is not "left of" it: audit round 2);
+    neither mask reaching image_span_margin past both ends of the other (graph/relations/span.py)."""
     x = geom.cam_centers[:, 0]
     u = geom.img_centroid[:, 0]
     v = x[None, :] - x[:, None]  # v[i, j] > 0: i is left of j
@@ -73,6 +75,9 @@ def _lateral(geom: SceneGeom) -> Matrices:
     unclear = (codes != UNDECIDED) & (np.abs(du) < image_gap(geom, 0, geom.th.image_clear_margin))
     count(geom, "margin_image_lateral", unclear)
     codes[unclear] = UNDECIDED
+    spanned = (codes != UNDECIDED) & span_contains(geom, 0)
+    count(geom, "image_span_contains", spanned)
+    codes[spanned] = UNDECIDED
     return v, codes, geom.th.lateral_margin
 
 
@@ -95,7 +100,8 @@ def _depthwise(geom: SceneGeom) -> Matrices:
 def _image_vertical(geom: SceneGeom) -> Matrices:
     """Mask centroids decide, but only where the masks' top rows and bottom rows order the two objects the same
     way: a person and a refrigerator spanning the same rows are not one "higher in the image" than the other
-    because the person's mass sits in a skirt (audit round 2)."""
+    because the person's mass sits in a skirt (audit round 2). This already leaves a mask spanning the other's
+    rows undecided (its top is higher, its bottom lower), with any margin: the row form of span_contains."""
     y = geom.img_centroid[:, 1]
     v = y[None, :] - y[:, None]  # v[i, j] > 0: i higher in the image than j
     codes = decide_matrix(v, geom.th.image_margin)
@@ -167,18 +173,18 @@ _pair(
     "left",
     "cam",
     "camera-x of B's centre minus A's (m)",
-    "lateral_margin, image_margin, image_clear_margin, image_extent_share",
+    "lateral_margin, image_margin, image_clear_margin, image_extent_share, image_span_margin",
     "A's centre is left of B's in the camera frame by more than the margin, the image agrees with the mask "
     "centroids clearly apart (image_extent_share of the narrower mask, and image_clear_margin of the width "
-    "where the masks' columns overlap) "
-    "and their boxes do not overlap (footprints, half the shorter x extent)",
+    "where the masks' columns overlap), neither mask reaching image_span_margin of the width past both ends of "
+    "the other, and their boxes do not overlap (footprints, half the shorter x extent)",
 )
 _mirror(
     "right",
     "left",
     "cam",
     "camera-x of A's centre minus B's (m)",
-    "lateral_margin, image_margin, image_clear_margin, image_extent_share",
+    "lateral_margin, image_margin, image_clear_margin, image_extent_share, image_span_margin",
     "mirror of left: A's centre is right of B's",
 )
 _pair(
