@@ -19,8 +19,8 @@ import numpy as np
 from refspatial_gen.core.mask import denormalise_point
 from refspatial_gen.core.model import Frame, FreeSpaceRegion, QAPair, Sample, SceneGraph
 from refspatial_gen.qa.ops import OPS
-from refspatial_gen.qa.verify_lookalike import check_lookalikes
 from refspatial_gen.qa.verify_corners import check_corners
+from refspatial_gen.qa.verify_lookalike import check_lookalikes
 from refspatial_gen.qa.verify_nesting import check_nesting
 from refspatial_gen.qa.verify_nesting import walk as _walk
 from refspatial_gen.qa.verify_photo import check_photo
