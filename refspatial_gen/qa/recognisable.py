@@ -9,6 +9,11 @@ Why: a wine glass cut by the bottom edge looks tallest because it is nearest; a 
 or wide the part outside the picture is (audit round 2). Distances and depths stay: the object's place is
 seen. Counted in sample.meta["truth"] as `size_withheld_cut_by_border`; verify re-checks the named objects
 from their stored masks and boxes (qa/verify_truth.py).
+
+Likewise a camera turn to face an object (rotation_horizontal / rotation_vertical) is asked only about a target
+seen whole: the centre of a train that runs past both edges of the photo is nowhere a person can point to, and
+"rotate left around 3 degrees" to face it cannot be judged (audit round 5). Counted as
+`rotation_withheld_cut_by_border`; verify re-checks the targets the same way.
 """
 
 from __future__ import annotations
@@ -24,6 +29,8 @@ from refspatial_gen.qa.values import Context
 
 SIZE_RELATIONS = frozenset(n for n in REGISTRY.names() if REGISTRY[n].group == "sizes")
 SIZE_CUT = "size_withheld_cut_by_border"
+ROTATION_RELATIONS = frozenset({"rotation_horizontal", "rotation_vertical"})
+ROTATION_CUT = "rotation_withheld_cut_by_border"
 SUPERLATIVE = r"\b(?:tallest|shortest|biggest|smallest|largest|widest|thinnest)\s+(?:\w+\s+)?"
 
 
@@ -33,8 +40,23 @@ def superlative_of(question: str, category: str) -> bool:
     return re.search(SUPERLATIVE + cat + r"\b", question.lower()) is not None
 
 
+def target_cut(ctx: Context, qa: QAPair) -> bool:
+    """Is a target of the pair (the object a camera turn faces) cut by the image border in either view?"""
+    for ix in (ctx.idx, ctx.second):
+        if ix is None:
+            continue
+        for i in qa.targets:
+            n = ix.nodes.get(i)
+            if n is not None and n.attributes.get("sized") is False:
+                return True
+    return False
+
+
 def withhold_cut(t: Template, env: dict[str, Any], ctx: Context, qa: QAPair) -> str | None:
-    """SIZE_CUT when the pair asks a size question involving an object cut by the border, else None."""
+    """SIZE_CUT when the pair asks a size question involving an object cut by the border, ROTATION_CUT when it
+    asks a camera turn to face a target cut by the border, else None."""
+    if not ROTATION_RELATIONS.isdisjoint(qa.relations) and target_cut(ctx, qa):
+        return ROTATION_CUT
     for ix in (ctx.idx, ctx.second):
         if ix is None:
             continue

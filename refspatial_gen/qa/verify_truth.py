@@ -11,9 +11,10 @@ marks, key steps):
     (truth/sizes.py) and the frame's metric scale;
   - recognisability (graph/visibility.py): a visible mask that is no sliver (largest inscribed disc, by an exact
     Euclidean distance transform, against the recorded thickness floor); no size question about an object whose
-    mask reaches the border or whose box is not whole in view; contrast with its surroundings, and a dark
-    object's size and detail (qa/verify_contrast.py, its own CIELAB and ring); a front (Orientation key
-    steps, stored fronts of named objects) only on uncut objects seen at least `min_front_visible_fraction`;
+    mask reaches the border or whose box is not whole in view, and no camera turn to face such a target;
+    contrast with its surroundings, and a dark object's size and detail (qa/verify_contrast.py, its own CIELAB
+    and ring); a front (Orientation key steps, stored fronts of named objects) only on uncut objects seen at
+    least `min_front_visible_fraction`;
   - free-space answer points: `min_point_clearance_px` from the image border and every object's mask but the
     surface's own, and `free_clearance` from every obstacle footprint on the plane (its own ray and footprints).
 """
@@ -31,6 +32,7 @@ from refspatial_gen.truth.sizes import check_size
 
 METRIC_RELATIONS = ("distance", "depth", "tall", "short", "big", "small", "wide", "thin")
 SIZE_RELATIONS = ("tall", "short", "big", "small", "wide", "thin")
+ROTATION_RELATIONS = ("rotation_horizontal", "rotation_vertical")  # a camera turn faces a target seen whole
 FRONT_RELATIONS = ("angle", "facing", "facing_away", "obj_front", "obj_left", "obj_behind", "obj_right")
 THICK_TOL = 0.05  # px: two exact distance transforms
 CLEAR_TOL_PX = 0.5  # px: the generator measures from the pixel grid, this check from the pixel centre
@@ -219,6 +221,10 @@ def check_truth(qa: QAPair, frames: dict[str, Frame], graphs: dict[str, SceneGra
         for i in sorted(named):
             if (why := _cut(frame, objs[i], floor)) is not None:
                 out.append(f"size question names object {i} ({objs[i].category}): {why}")
+    if not set(ROTATION_RELATIONS).isdisjoint(qa.relations):
+        for i in sorted(set(qa.targets) & set(objs)):
+            if (why := _cut(frame, objs[i], floor)) is not None:
+                out.append(f"a camera turn to face object {i} ({objs[i].category}): {why}")
     for o in frame.objects:
         if _names_size_superlative(qa.question, o.category) and (why := _cut(frame, o, floor)) is not None:
             out.append(f"a size superlative of {o.category!r} while object {o.id} of it is cut: {why}")
