@@ -22,8 +22,10 @@ GRAPH_FIELDS: dict[str, Field] = {
     "free_space": Field(bool, default=True, doc="compute free-space regions for placement questions"),
     "truth": Field(dict, default=None, doc="visibility floor and metric trust (graph/visibility.py)"),
 }
+PX_MAX = {"min_surface_px": 1_000_000.0}  # pixel counts (at 640x480) go past 1000
 THRESHOLD_FIELDS: dict[str, Field] = {
-    f.name: Field(float, min=0.0, max=1_000.0, doc="graph/constants.py Thresholds") for f in fields(Thresholds)
+    f.name: Field(float, min=0.0, max=PX_MAX.get(f.name, 1_000.0), doc="graph/constants.py Thresholds")
+    for f in fields(Thresholds)
 }
 
 

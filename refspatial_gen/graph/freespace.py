@@ -293,7 +293,8 @@ def _build(geom: SceneGeom) -> list[FreeSpaceRegion]:
     stub = SceneGraph(geom.frame.frame_id, [], [], [], meta)
     out: list[FreeSpaceRegion] = []
     for s in geom.surfaces:
-        out += _surface_regions(geom, s, supports, labels.get(s.id, {}), stub)
+        if not labels.get(s.id, {}).get("unseen"):  # no free space on a top a person cannot see
+            out += _surface_regions(geom, s, supports, labels.get(s.id, {}), stub)
     return out
 
 

@@ -15,6 +15,8 @@ from typing import Any
 
 import numpy as np
 
+from refspatial_gen.qa.verify_surface_seen import check_surface_seen
+
 SHARE_TOL = 0.08
 N = 10  # lattice cells per side (the generator uses 12)
 
@@ -129,10 +131,11 @@ def _where(view: _View, poly: np.ndarray, kind: str, name: str) -> int | None:
 
 def check_corners(qa: Any, frame: Any, graph: Any) -> list[str]:
     """Problems with the corners and edges a pair names (empty when it names none)."""
+    seen = check_surface_seen(qa, frame, graph)  # the named surface's top seen at all (qa/verify_surface_seen.py)
     spots = _spots(qa)
     if not spots or frame.depth is None:
-        return []
-    view, out = _View(frame, graph), []
+        return seen
+    view, out = _View(frame, graph), seen
     surfaces = {s.id: s for s in frame.surfaces}
     for kind, sid, name in spots:
         if sid not in surfaces:

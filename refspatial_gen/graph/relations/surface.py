@@ -18,6 +18,7 @@ from refspatial_gen.graph.relations.common import FALSE, TRUE, UNDECIDED, cached
 from refspatial_gen.graph.scene import SceneGeom, roll_next
 from refspatial_gen.graph.support import get_supports, surface_polygon
 from refspatial_gen.graph.surface_seen import filter_seen
+from refspatial_gen.graph.surface_visible import unseen_why
 
 if TYPE_CHECKING:
     from refspatial_gen.graph.tables import RelationTables
@@ -36,6 +37,12 @@ def surface_labels(geom: SceneGeom) -> dict[str, dict[str, Any]]:
             poly = surface_polygon(s.box)
             entry: dict[str, Any] = {"polygon": poly, "corners": {}, "edges": {}, "z": s.top_z}
             out[s.id] = entry
+            why = unseen_why(g, s.object_id, poly, s.top_z)
+            if why is not None:  # a top a person cannot see is never named (graph/surface_visible.py)
+                entry["unseen"] = why
+                truth = g.cache.setdefault("truth", {})
+                truth[why] = truth.get(why, 0) + 1
+                continue
             if axes is None:
                 continue
             right, fwd = axes
