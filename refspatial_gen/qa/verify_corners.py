@@ -129,10 +129,12 @@ def _where(view: _View, poly: np.ndarray, kind: str, name: str) -> int | None:
 
 def check_corners(qa: Any, frame: Any, graph: Any) -> list[str]:
     """Problems with the corners and edges a pair names (empty when it names none)."""
-    spots = _spots(qa)
+    from refspatial_gen.qa.verify_spotpoint import check_spot_point
+
+    spots, out = _spots(qa), check_spot_point(qa, frame, graph)  # the answer point at its corner / edge
     if not spots or frame.depth is None:
-        return []
-    view, out = _View(frame, graph), []
+        return out
+    view = _View(frame, graph)
     surfaces = {s.id: s for s in frame.surfaces}
     for kind, sid, name in spots:
         if sid not in surfaces:
