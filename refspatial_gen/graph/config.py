@@ -27,6 +27,9 @@ THRESHOLD_FIELDS: dict[str, Field] = {
     f.name: Field(float, min=0.0, max=PX_MAX.get(f.name, 1_000.0), doc="graph/constants.py Thresholds")
     for f in fields(Thresholds)
 }
+THRESHOLD_FIELDS["corner_point_max_share"] = Field(
+    float, min=0.0, max=1.0, doc="share of a surface's extent a corner/edge answer point may lie from it"
+)
 
 
 def check_graph_section(graph: Any, file: str, lines: dict[tuple[Any, ...], int], errors: list[RecipeError]) -> None:

@@ -124,6 +124,9 @@ class Thresholds:
     # inside (graph/relations/receptacle.py): A fits in B only when A's largest horizontal extent is at most
     # this many times B's (a pencil may stick out of a cup a little; a table never fits in a bin)
     inside_max_overhang: float = 1.2
+    # a corner / edge free region's answer point at most this share of the surface's extent from its corner
+    # along each side, or from its edge across the surface (graph/corner_point.py, audit round 5)
+    corner_point_max_share: float = 0.25
 
     def to_json(self) -> dict[str, float]:
         return {k: round(float(v), 6) for k, v in sorted(asdict(self).items())}

@@ -11,7 +11,8 @@ that keeps a clearance (`clear_samples`): `graph: truth: min_point_clearance_px`
 object's mask (but the surface's own object) and from the image border, and the thresholds' `free_clearance`
 from every obstacle footprint; it is re-checked after rounding to RefSpatial's three decimals with
 `check_free_point` and the clearance again. A region with no such point is dropped (graph.meta["truth"]:
-`free_point_no_clearance`). Audit round 2: a point "behind the mug" touched the mug in the image.
+`free_point_no_clearance`). Audit round 2: a point "behind the mug" touched the mug in the image. A corner or
+edge region's point is instead the clear one nearest its corner / within a band of its edge (graph/corner_point.py).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from shapely.ops import unary_union
 from refspatial_gen.core.mask import denormalise_point, normalise_point
 from refspatial_gen.core.model import Frame, FreeSpaceRegion, SceneGraph
 from refspatial_gen.graph.clearance import clear_samples
+from refspatial_gen.graph.corner_point import FAR, Spot, corner_spot, edge_spot, point_order
 from refspatial_gen.graph.scene import SceneGeom, box_footprint, points_in_polygons
 from refspatial_gen.graph.support import get_supports, surface_polygon
 
@@ -238,6 +240,7 @@ def _region(
     label: str,
     obstacles: list[np.ndarray],
     outline: np.ndarray,
+    spot: Spot | None = None,
 ) -> FreeSpaceRegion | None:
     poly = poly.simplify(SIMPLIFY, preserve_topology=True)
     if not isinstance(poly, Polygon) or poly.is_empty:
@@ -256,7 +259,13 @@ def _region(
         counts = geom.cache.setdefault("truth", {})
         counts[NO_CLEARANCE] = counts.get(NO_CLEARANCE, 0) + 1
         return None
-    order = [k for k in np.argsort(-np.round(depth_in, 6), kind="stable") if clear[k]]
+    share = geom.th.corner_point_max_share
+    if spot is None:
+        order = [k for k in np.argsort(-np.round(depth_in, 6), kind="stable") if clear[k]]
+    elif not (order := point_order(spot, vis, clear, depth_in, share)):
+        counts = geom.cache.setdefault("truth", {})  # corner_point.py: no clear point near the corner / edge
+        counts[FAR[spot.kind]] = counts.get(FAR[spot.kind], 0) + 1
+        return None
     G = geom.gravity.rotation
     poly_xy = [(round(float(x), 5), round(float(y), 5)) for x, y in np.asarray(poly.exterior.coords)[:-1]]
     for k in order[:POINT_TRIES]:
@@ -265,6 +274,8 @@ def _region(
         hit = pixel_to_plane(geom.frame, G, px, py, z)
         if hit is None or not clear_samples(geom, np.array([[px, py]]), hit[None, :2], exclude, obstacles)[0]:
             continue
+        if spot is not None and spot.shares(hit[None, :2])[0] > share:
+            continue  # the rounded point drifted past the corner's / edge's share
         r = FreeSpaceRegion(
             sid, kind, tuple(anchors), poly_xy, z, round(area, 6), (float(hit[0]), float(hit[1]), float(z)), p, label
         )
@@ -323,10 +334,10 @@ def _surface_regions(
         return []
     out: list[FreeSpaceRegion] = []
 
-    def add(kind: str, anchors: tuple[int, ...], shape: Any, label: str = "") -> None:
+    def add(kind: str, anchors: tuple[int, ...], shape: Any, label: str = "", spot: Spot | None = None) -> None:
         poly = _largest(free.intersection(shape))
         if poly is not None:
-            r = _region(geom, stub, s.id, kind, anchors, poly, z, label, obst_fp, outline)
+            r = _region(geom, stub, s.id, kind, anchors, poly, z, label, obst_fp, outline, spot)
             if r is not None:
                 out.append(r)
 
@@ -355,12 +366,14 @@ def _surface_regions(
         e2 = spoly[(k - 1) % 4] - p
         e1 = e1 / np.linalg.norm(e1) * min(th.corner_size, np.linalg.norm(e1) / 2)
         e2 = e2 / np.linalg.norm(e2) * min(th.corner_size, np.linalg.norm(e2) / 2)
-        add("corner", (), shapely.polygons(np.array([p, p + e1, p + e1 + e2, p + e2])), f"{name} corner")
+        shape = shapely.polygons(np.array([p, p + e1, p + e1 + e2, p + e2]))
+        add("corner", (), shape, f"{name} corner", corner_spot(spoly, k))
     for name, (a, b) in sorted(lab.get("edges", {}).items()):
         e = (b - a) / np.linalg.norm(b - a)
         inward = np.array([-e[1], e[0]])
         w = min(th.edge_width, float(np.linalg.norm(b - a)) / 2)
-        add("edge", (), shapely.polygons(np.array([a, b, b + inward * w, a + inward * w])), name)
+        shape = shapely.polygons(np.array([a, b, b + inward * w, a + inward * w]))
+        add("edge", (), shape, name, edge_spot(spoly, a, b))
     return out
 
 

@@ -131,11 +131,14 @@ def _where(view: _View, poly: np.ndarray, kind: str, name: str) -> int | None:
 
 def check_corners(qa: Any, frame: Any, graph: Any) -> list[str]:
     """Problems with the corners and edges a pair names (empty when it names none)."""
-    seen = check_surface_seen(qa, frame, graph)  # the named surface's top seen at all (qa/verify_surface_seen.py)
+    from refspatial_gen.qa.verify_spotpoint import check_spot_point
+
+    out = check_surface_seen(qa, frame, graph)  # the named surface's top seen at all (qa/verify_surface_seen.py)
+    out += check_spot_point(qa, frame, graph)  # the answer point at its corner / edge (qa/verify_spotpoint.py)
     spots = _spots(qa)
     if not spots or frame.depth is None:
-        return seen
-    view, out = _View(frame, graph), seen
+        return out
+    view = _View(frame, graph)
     surfaces = {s.id: s for s in frame.surfaces}
     for kind, sid, name in spots:
         if sid not in surfaces:
