@@ -14,32 +14,17 @@ import numpy as np
 import pytest
 
 from refspatial_gen.core.errors import RecipeErrors
-from refspatial_gen.core.geometry import Box3D
 from refspatial_gen.core.model import Sample
 from refspatial_gen.graph import build_graph
 from refspatial_gen.qa import generate_qa
 from refspatial_gen.qa.verify import verify_sample
 from refspatial_gen.qa.verify_truth import named_objects
 from refspatial_gen.recipe import load_recipe
-from refspatial_gen.sources.toy import TABLE, toy_frame
+from refspatial_gen.sources.toy import TABLE
+from tests.test_recog_floor import _scene
 
 TOP = TABLE.top_z
 CAN = 2  # the blue can of _scene()
-
-
-def _box(x: float, y: float, sx: float, sy: float, h: float) -> Box3D:
-    return Box3D(np.array([x, y, TOP + h / 2]), np.array([sx, sy, h]), np.eye(3))
-
-
-def _scene():
-    boxes = [
-        ("can", "red", _box(-0.3, 0.0, 0.065, 0.065, 0.12)),
-        ("can", "blue", _box(-0.1, 0.05, 0.065, 0.065, 0.10)),
-        ("can", "green", _box(0.1, 0.0, 0.065, 0.065, 0.13)),
-        ("book", "yellow", _box(0.0, -0.2, 0.18, 0.14, 0.03)),
-        ("box", "white", _box(0.3, 0.1, 0.1, 0.1, 0.08)),
-    ]
-    return toy_frame(np.random.default_rng(0), boxes=boxes, width=640, height=480)
 
 
 def _paint(frame, oid: int, inside, around, ring: int = 14):
