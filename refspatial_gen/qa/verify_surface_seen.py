@@ -78,7 +78,10 @@ def check_surface_seen(qa: Any, frame: Any, graph: Any) -> list[str]:
             continue
         if frame.depth is None:
             continue
-        seen = top_pixels(frame, graph, s.box)
+        cache = frame.__dict__.setdefault("_verify_top_pixels", {})  # one lift of the depth map per surface,
+        if sid not in cache:  # not one per pair that names it
+            cache[sid] = top_pixels(frame, graph, s.box)
+        seen = cache[sid]
         H, W = seen.shape
         need_px = float(th.get("min_surface_px", 0.0)) * W * H / (REF_W * REF_H)
         cols = seen.sum(axis=0)
